@@ -1,0 +1,564 @@
+"""General-purpose blocks: sources, arithmetic, memory, filters, sinks, LTI systems.
+
+Generic blocks (Gain, Sum, UnitDelay, ...) take the spec of whatever drives
+them; give ``shape``/``unit`` explicitly only where a feedback loop of generic
+blocks leaves nothing to infer from.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+import scipy.signal
+
+from cogblocks.sim import ANY, Block, Signal, SimulationError
+from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
+
+__all__ = [
+    "Constant",
+    "Demux",
+    "DiscreteLTI",
+    "Function",
+    "Gain",
+    "Integrator",
+    "LowPass",
+    "Mux",
+    "Playback",
+    "Probe",
+    "Saturation",
+    "Sum",
+    "UnitDelay",
+]
+
+
+def _open_spec(shape: Any, unit: str | None, wrapped: bool | None) -> Signal:
+    return Signal(shape=shape, dtype=None, unit=unit, wrapped=wrapped)
+
+
+class Constant(Block):
+    """Output a constant value.
+
+    Ports: output ``y`` (shape of ``value``).
+
+    Parameters
+    ----------
+    value : array_like
+        The value; finite numbers only.
+    unit : str
+        Unit of the output.
+    wrapped : bool
+        Whether the value is an angle wrapped to one turn.
+    """
+
+    def __init__(self, value: Any, *, unit: str = "1", wrapped: bool = False, period: float | None = None) -> None:
+        super().__init__(period=period)
+        arr = finite_array(self, "value", value)
+        self.add_output("y", shape=arr.shape, unit=unit, wrapped=wrapped, initial=arr)
+
+
+class Gain(Block):
+    """Multiply the input by a gain: ``y = k * u``, or ``y = k @ u`` for a matrix gain.
+
+    Ports: input ``u`` (any spec), output ``y`` (spec of ``u``, not wrapped).
+
+    Parameters
+    ----------
+    k : float or array_like
+        Scalar or element-wise gain; with ``matrix=True`` a 2-D matrix.
+    matrix : bool
+        Treat ``k`` as a matrix (``y = k @ u``; ``u`` must be a vector).
+    """
+
+    def __init__(self, k: Any, *, matrix: bool = False, period: float | None = None) -> None:
+        super().__init__(period=period)
+        self.k = finite_array(self, "k", k, ndim=2 if matrix else None)
+        self.matrix = matrix
+        self.add_input("u", ANY)
+        if matrix:
+            self.add_output("y", like="u", shape=(self.k.shape[0],), wrapped=False)
+        else:
+            self.add_output("y", like="u", wrapped=False)
+
+    def setup(self) -> None:
+        shape = self.u.spec.shape
+        if self.matrix and shape != (self.k.shape[1],):
+            raise self._fail(f"a {self.k.shape} matrix gain needs an input of shape ({self.k.shape[1]},), got {shape}")
+        if not self.matrix and np.broadcast_shapes(self.k.shape, shape) != shape:
+            raise self._fail(f"gain of shape {self.k.shape} does not broadcast to the input shape {shape}")
+
+    def output(self, k: int) -> None:
+        if self.matrix:
+            np.matmul(self.k, self.u.value, out=self.y.value)
+        else:
+            np.multiply(self.k, self.u.value, out=self.y.value)
+
+
+class Sum(Block):
+    """Add and subtract inputs: ``y = s0*u0 + s1*u1 + ...`` with signs from ``signs``.
+
+    Ports: inputs ``u0``, ``u1``, ... (all of one shape and unit), output ``y``.
+
+    Parameters
+    ----------
+    signs : str
+        One ``+`` or ``-`` per input, e.g. ``"+-"`` for ``u0 - u1``.
+    """
+
+    def __init__(self, signs: str = "++", *, period: float | None = None) -> None:
+        super().__init__(period=period)
+        if not isinstance(signs, str) or not signs or set(signs) - {"+", "-"}:
+            raise ValueError(f"Sum: signs must be a non-empty string of '+' and '-', got {signs!r}")
+        self.signs = signs
+        self._terms = [(self.add_input(f"u{i}", ANY), s == "+") for i, s in enumerate(signs)]
+        self.add_output("y", like="u0", wrapped=False)
+
+    def setup(self) -> None:
+        first = self.u0.spec
+        for port, _ in self._terms[1:]:
+            if port.spec.shape != first.shape or port.spec.unit != first.unit:
+                raise self._fail(f"all inputs must share shape and unit; u0 is {first}, {port.name} is {port.spec}")
+
+    def output(self, k: int) -> None:
+        y = self.y.value
+        first, positive = self._terms[0]
+        if positive:
+            y[...] = first.value
+        else:
+            np.negative(first.value, out=y)
+        for port, positive in self._terms[1:]:
+            if positive:
+                np.add(y, port.value, out=y)
+            else:
+                np.subtract(y, port.value, out=y)
+
+
+class _Memory(Block):
+    """Shared set-up of blocks whose state has the size of their input (delay, integrator)."""
+
+    def __init__(
+        self,
+        initial: Any,
+        shape: Any,
+        unit: str | None,
+        wrapped: bool | None,
+        period: float | None,
+        derived: dict[str, Any],
+    ) -> None:
+        super().__init__(period=period)
+        self._initial = finite_array(self, "initial", initial)
+        self.add_input("u", _open_spec(shape, None, None), feedthrough=False)
+        if shape is not None:
+            # explicit spec: what a feedback loop of generic blocks needs to compile
+            self.add_output("y", shape=shape, unit=unit or "1", wrapped=bool(wrapped))
+        else:
+            overrides = dict(derived)
+            if unit is not None:
+                overrides["unit"] = unit
+            if wrapped is not None:
+                overrides["wrapped"] = wrapped
+            self.add_output("y", like="u", **overrides)
+        self.add_state("x", np.zeros(()))
+
+    def setup(self) -> None:
+        shape = self.y.spec.shape
+        try:
+            x0 = np.broadcast_to(self._initial, shape).astype(np.float64)
+        except ValueError:
+            raise self._fail(
+                f"initial value of shape {self._initial.shape} does not fit the signal shape {shape}"
+            ) from None
+        self.add_state("x", x0.copy())
+        self.y.initial = x0
+
+    def output(self, k: int) -> None:
+        self.y.value[...] = self.x
+
+
+class UnitDelay(_Memory):
+    """Delay the input by one step of the block: ``y[n] = u[n-1]``, ``y[0] = initial``.
+
+    Ports: input ``u`` (not feedthrough, so it breaks algebraic loops), output ``y``
+    (spec of ``u``).
+
+    Parameters
+    ----------
+    initial : array_like
+        Output before the first input arrives.
+    shape, unit, wrapped : optional
+        Spec of the signal; ``shape`` is needed only when a loop of generic blocks
+        leaves it undetermined.
+    """
+
+    def __init__(
+        self,
+        initial: Any = 0.0,
+        *,
+        shape: Any = None,
+        unit: str | None = None,
+        wrapped: bool | None = None,
+        period: float | None = None,
+    ) -> None:
+        super().__init__(initial, shape, unit, wrapped, period, {})
+
+    def update(self, k: int) -> None:
+        self.x[...] = self.u.value
+
+
+def _integrated_unit(unit: str) -> str:
+    if unit.endswith("/s"):
+        return unit[:-2] or "1"
+    return "s" if unit == "1" else f"{unit}*s"
+
+
+class Integrator(_Memory):
+    """Forward-Euler integrator: ``x[n+1] = x[n] + dt * u[n]``, ``y[n] = x[n]``.
+
+    Ports: input ``u`` (not feedthrough), output ``y``. The output unit is the
+    input unit times seconds (``"mm/s"`` gives ``"mm"``) unless ``unit`` is given.
+
+    Parameters
+    ----------
+    initial : array_like
+        Initial state.
+    shape, unit : optional
+        Spec of the output, when it cannot be inferred from the input.
+    """
+
+    def __init__(
+        self,
+        initial: Any = 0.0,
+        *,
+        shape: Any = None,
+        unit: str | None = None,
+        period: float | None = None,
+    ) -> None:
+        super().__init__(initial, shape, unit, False, period, {"unit": _integrated_unit})
+
+    def update(self, k: int) -> None:
+        self.x += self.dt * self.u.value
+
+
+class Saturation(Block):
+    """Clip the input to ``[lower, upper]``.
+
+    Ports: input ``u``, output ``y`` (spec of ``u``). NaN passes through as NaN.
+    """
+
+    def __init__(self, lower: float, upper: float, *, period: float | None = None) -> None:
+        super().__init__(period=period)
+        self.lower = finite_number(self, "lower", lower)
+        self.upper = finite_number(self, "upper", upper, low=self.lower)
+        self.add_input("u", ANY)
+        self.add_output("y", like="u")
+
+    def output(self, k: int) -> None:
+        np.clip(self.u.value, self.lower, self.upper, out=self.y.value)
+
+
+class LowPass(Block):
+    """Butterworth low-pass filter, run sample by sample as second-order sections.
+
+    The filter is designed by ``scipy.signal.butter(order, cutoff, fs=1/dt,
+    output="sos")`` for the block's own step and run in transposed direct form
+    II, exactly as ``scipy.signal.sosfilt`` does, one sample per tick.
+
+    Ports: input ``u`` (any shape; each element filtered independently), output
+    ``y`` (spec of ``u``).
+
+    Parameters
+    ----------
+    cutoff : float
+        Cut-off frequency in Hz, below the Nyquist frequency ``1 / (2 dt)``.
+    order : int
+        Filter order (2 by default).
+    init : {"first", "zero"}
+        ``"first"`` starts the filter in steady state at the first finite sample
+        (no start-up transient); ``"zero"`` starts from rest.
+
+    Notes
+    -----
+    Bad data policy: a sample with NaN or inf is skipped; the output holds its
+    last value and the filter state does not advance.
+    """
+
+    def __init__(self, cutoff: float, order: int = 2, *, init: str = "first", period: float | None = None) -> None:
+        super().__init__(period=period)
+        self.cutoff = finite_number(self, "cutoff", cutoff, low=0.0, low_open=True)
+        self.order = positive_int(self, "order", order)
+        self.init = one_of(self, "init", init, ("first", "zero"))
+        self.add_input("u", ANY)
+        self.add_output("y", like="u")
+        self.add_state("z", np.zeros(()))
+        self.add_state("primed", False)
+
+    def setup(self) -> None:
+        nyquist = 0.5 / self.dt
+        if self.cutoff >= nyquist:
+            raise self._fail(
+                f"cutoff {self.cutoff} Hz must be below the Nyquist frequency {nyquist:g} Hz of its step {self.dt} s"
+            )
+        self.sos = scipy.signal.butter(self.order, self.cutoff, fs=1.0 / self.dt, output="sos")
+        self._zi_unit = scipy.signal.sosfilt_zi(self.sos)  # steady-state state for a unit input
+        shape = self.u.spec.shape
+        self.add_state("z", np.zeros((len(self.sos), 2) + shape))
+        self.add_state("primed", self.init == "zero")
+        self._z_next = np.zeros_like(self.z)
+        extra = (slice(None), slice(None)) + (None,) * len(shape)
+        self._zi_unit = self._zi_unit[extra]
+
+    def output(self, k: int) -> None:
+        x = self.u.value
+        if not np.all(np.isfinite(x)):
+            self._z_next[...] = self.z
+            return
+        if not self.primed:
+            self.z = self._zi_unit * x
+            self.primed = True
+        z, z_next = self.z, self._z_next
+        for s, (b0, b1, b2, _, a1, a2) in enumerate(self.sos):
+            y = b0 * x + z[s, 0]
+            z_next[s, 0] = b1 * x - a1 * y + z[s, 1]
+            z_next[s, 1] = b2 * x - a2 * y
+            x = y
+        self.y.value[...] = x
+
+    def update(self, k: int) -> None:
+        self.z[...] = self._z_next
+
+
+class Function(Block):
+    """Wrap a Python callable as a stateless block with declared ports.
+
+    The callable receives the inputs as keyword arguments (scalars as ``float``,
+    others as arrays) and, if it has a parameter named ``t``, the time in
+    seconds. It returns the output value, or a tuple (in declared order) or dict
+    for several outputs.
+
+    Parameters
+    ----------
+    fn : callable
+        The function.
+    inputs : mapping of str to Signal
+        Input ports and their specs.
+    outputs : Signal or mapping of str to Signal
+        Output spec (a single output named ``y``) or output ports and specs.
+    feedthrough : bool
+        Whether the outputs depend on the inputs of the same tick (default True).
+
+    Examples
+    --------
+    >>> from cogblocks.sim import Signal
+    >>> f = Function(lambda a, b: a * b, inputs={"a": Signal(), "b": Signal()}, outputs=Signal())
+    """
+
+    def __init__(
+        self,
+        fn: Callable[..., Any],
+        inputs: Mapping[str, Signal],
+        outputs: Signal | Mapping[str, Signal],
+        *,
+        feedthrough: bool = True,
+        period: float | None = None,
+    ) -> None:
+        super().__init__(period=period)
+        if not callable(fn):
+            raise ValueError(f"Function: fn must be callable, got {fn!r}")
+        self.fn = fn
+        for name, spec in inputs.items():
+            self.add_input(name, spec, feedthrough=feedthrough)
+        outs = {"y": outputs} if isinstance(outputs, Signal) else dict(outputs)
+        if not outs:
+            raise ValueError("Function: outputs must declare at least one output")
+        self._outs = [self.add_output(name, spec) for name, spec in outs.items()]
+        try:
+            params = inspect.signature(fn).parameters
+        except (TypeError, ValueError):
+            params = {}
+        self._pass_time = "t" in params and "t" not in self._inputs
+        self._ins = list(self._inputs.values())
+
+    def output(self, k: int) -> None:
+        kwargs = {p.name: (float(p.value) if p.value.ndim == 0 else p.value) for p in self._ins}
+        if self._pass_time:
+            kwargs["t"] = k * (self.dt / self.every)
+        result = self.fn(**kwargs)
+        if len(self._outs) == 1:
+            values = (result,)
+        elif isinstance(result, Mapping):
+            values = tuple(result[p.name] for p in self._outs)
+        else:
+            values = tuple(result)
+        for port, value in zip(self._outs, values, strict=True):
+            try:
+                port.value[...] = value
+            except (ValueError, TypeError) as exc:
+                raise SimulationError(
+                    f"{self.name}: the function returned {np.shape(value)} for output {port.name!r} of shape "
+                    f"{port.value.shape}"
+                ) from exc
+
+
+class Playback(Block):
+    """Play an array, one row per step of the block.
+
+    Ports: output ``y`` (shape of one row).
+
+    Parameters
+    ----------
+    data : array_like
+        Samples, shape ``(n, *shape)``.
+    unit, wrapped : signal spec of the output.
+    at_end : {"hold", "repeat", "zero", "error"}
+        What to output after the last row.
+
+    Notes
+    -----
+    NaN rows are played as they are: Playback is how bad data gets into a
+    diagram on purpose.
+    """
+
+    def __init__(
+        self,
+        data: Any,
+        *,
+        unit: str = "1",
+        wrapped: bool = False,
+        at_end: str = "hold",
+        period: float | None = None,
+    ) -> None:
+        super().__init__(period=period)
+        arr = np.array(data, dtype=np.float64)
+        if arr.ndim < 1 or len(arr) == 0:
+            raise ValueError(f"Playback: data must be an array with at least one row, got shape {arr.shape}")
+        if np.isinf(arr).any():
+            raise ValueError("Playback: data must not contain inf (NaN is allowed, to model missing samples)")
+        self.data = arr
+        self.at_end = one_of(self, "at_end", at_end, ("hold", "repeat", "zero", "error"))
+        self.add_output("y", shape=arr.shape[1:], unit=unit, wrapped=wrapped)
+
+    def output(self, k: int) -> None:
+        i = k // self.every
+        n = len(self.data)
+        if i >= n:
+            if self.at_end == "hold":
+                i = n - 1
+            elif self.at_end == "repeat":
+                i %= n
+            elif self.at_end == "zero":
+                self.y.value[...] = 0.0
+                return
+            else:
+                raise SimulationError(f"{self.name}: played all {n} samples; at_end='error'")
+        self.y.value[...] = self.data[i]
+
+
+class Probe(Block):
+    """Mark a signal for recording; the Simulator records every Probe under its path.
+
+    Ports: input ``u`` (any spec).
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.add_input("u", ANY)
+
+
+class Mux(Block):
+    """Stack ``n`` scalar inputs ``u0 … u{n-1}`` into a vector output ``y`` of shape ``(n,)``."""
+
+    def __init__(self, n: int, *, period: float | None = None) -> None:
+        super().__init__(period=period)
+        self.n = positive_int(self, "n", n)
+        self._ins = [self.add_input(f"u{i}", Signal(shape=(), dtype=None, unit=None, wrapped=None)) for i in range(n)]
+        self.add_output("y", like="u0", shape=(n,))
+
+    def setup(self) -> None:
+        first = self.u0.spec
+        for port in self._ins[1:]:
+            if port.spec.unit != first.unit or port.spec.wrapped != first.wrapped:
+                raise self._fail(f"all inputs must share unit and wrapping; u0 is {first}, {port.name} is {port.spec}")
+
+    def output(self, k: int) -> None:
+        y = self.y.value
+        for i, port in enumerate(self._ins):
+            y[i] = port.value
+
+
+class Demux(Block):
+    """Split a vector input ``u`` of shape ``(n,)`` into scalar outputs ``y0 … y{n-1}``."""
+
+    def __init__(
+        self, n: int, *, unit: str | None = None, wrapped: bool | None = None, period: float | None = None
+    ) -> None:
+        super().__init__(period=period)
+        self.n = positive_int(self, "n", n)
+        self.add_input("u", Signal(shape=(n,), dtype=None, unit=unit, wrapped=wrapped))
+        self._outs = [self.add_output(f"y{i}", like="u", shape=()) for i in range(n)]
+
+    def output(self, k: int) -> None:
+        u = self.u.value
+        for i, port in enumerate(self._outs):
+            port.value[...] = u[i]
+
+
+class DiscreteLTI(Block):
+    """A discrete-time LTI system from python-control: ``x+ = A x + B u``, ``y = C x + D u``.
+
+    Ports: input ``u`` and output ``y``: scalars for a single-input or
+    single-output system, vectors otherwise. ``u`` is feedthrough only when
+    ``D`` is non-zero.
+
+    Parameters
+    ----------
+    sys : control.StateSpace or control.TransferFunction
+        A discrete-time system (``dt`` > 0 or ``True``). A positive ``dt`` must
+        equal the block's step.
+    x0 : array_like, optional
+        Initial state (zeros by default).
+    unit_in, unit_out : str
+        Units of the ports.
+    """
+
+    def __init__(
+        self,
+        sys: Any,
+        x0: Any = None,
+        *,
+        unit_in: str = "1",
+        unit_out: str = "1",
+        period: float | None = None,
+    ) -> None:
+        import control
+
+        super().__init__(period=period)
+        if not isinstance(sys, (control.StateSpace, control.TransferFunction)):
+            raise ValueError(
+                f"DiscreteLTI: sys must be a control.StateSpace or TransferFunction, got {type(sys).__name__}"
+            )
+        if not sys.isdtime():
+            raise ValueError(f"DiscreteLTI: sys must be discrete-time (dt > 0 or True), got dt={sys.dt!r}")
+        ss = control.ss(sys)
+        self.sys = ss
+        self.A, self.B, self.C, self.D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
+        n, m, p = self.A.shape[0], self.B.shape[1], self.C.shape[0]
+        x0 = np.zeros(n) if x0 is None else finite_array(self, "x0", x0, shape=(n,))
+        self._scalar_in, self._scalar_out = m == 1, p == 1
+        self.add_input("u", shape=() if m == 1 else (m,), unit=unit_in, feedthrough=bool(np.any(self.D)))
+        self.add_output("y", shape=() if p == 1 else (p,), unit=unit_out)
+        self.add_state("x", x0)
+
+    def setup(self) -> None:
+        sys_dt = self.sys.dt
+        if sys_dt is not True and abs(float(sys_dt) - self.dt) > 1e-12:
+            raise self._fail(f"the system's dt {sys_dt} s differs from the block's step {self.dt} s")
+
+    def output(self, k: int) -> None:
+        u = self.u.value.reshape(-1)
+        y = self.C @ self.x + self.D @ u
+        self.y.value[...] = y[0] if self._scalar_out else y
+
+    def update(self, k: int) -> None:
+        self.x = self.A @ self.x + self.B @ self.u.value.reshape(-1)

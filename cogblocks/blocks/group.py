@@ -1,0 +1,187 @@
+"""Kuramoto models of a group's oscillatory motion and its order parameter (section 5.2.1)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from cogblocks.blocks.angles import TWO_PI
+from cogblocks.sim import Block, Signal
+from cogblocks.sim.params import finite_array, finite_number, positive_int
+
+__all__ = ["KuramotoGroup", "KuramotoOscillator", "OrderParameter", "ring_adjacency"]
+
+PHASE = Signal(unit="rad", wrapped=True)
+
+
+def ring_adjacency(n: int) -> np.ndarray:
+    """Adjacency matrix of a ring of ``n`` participants (each sees its two neighbours)."""
+    n = positive_int("ring_adjacency", "n", n, minimum=2)
+    a = np.zeros((n, n))
+    for i in range(n):
+        a[i, (i + 1) % n] = a[i, (i - 1) % n] = 1.0
+    return a
+
+
+class KuramotoGroup(Block):
+    """A group of Kuramoto oscillators integrated by forward Euler (model 1 of the deliverable).
+
+    ``θ_i ← wrap(θ_i + dt (ω_i + gain Σ_j a_ij sin(θ̃_j − θ̃_i)))`` with phases
+    wrapped to ``[0, 2π)`` after every step. ``gain`` multiplies the sum as is
+    (it is *not* divided by N again; Table 2's ``c`` is the gain). When
+    ``assisted`` is set, the phase displayed for that participant (the L2
+    avatar's, input ``theta_l2``) replaces its own in everyone's coupling,
+    its own included: ``θ̃_assisted = θ_L2``.
+
+    Ports
+    -----
+    omega : input, shape (N,), rad/s, optional
+        Natural frequencies; defaults to the constant ``omega`` parameter.
+    theta_l2 : input, scalar, rad, wrapped (only with ``assisted``)
+        Displayed phase of the assisted participant.
+    theta : output, shape (N,), rad, wrapped
+        The participants' own phases (θ_L0 for the assisted one).
+
+    Parameters
+    ----------
+    omega : array_like
+        Natural frequencies in rad/s, one per participant.
+    gain : float
+        Coupling gain, >= 0.
+    adjacency : "ring" or array_like
+        Who sees whom: ``a_ij = 1`` when i is coupled to j. A ring by default.
+    assisted : int, optional
+        0-based index of the assisted participant, which adds the ``theta_l2`` input.
+    theta0 : array_like
+        Initial phases (0 by default, as in the deliverable).
+    """
+
+    def __init__(
+        self,
+        omega: Any,
+        gain: float,
+        *,
+        adjacency: Any = "ring",
+        assisted: int | None = None,
+        theta0: Any = 0.0,
+        period: float | None = None,
+    ) -> None:
+        super().__init__(period=period)
+        self.omega0 = finite_array(self, "omega", omega, ndim=1)
+        n = len(self.omega0)
+        if n < 2:
+            raise ValueError(f"KuramotoGroup: omega must hold at least 2 frequencies, got {n}")
+        self.n = n
+        self.gain = finite_number(self, "gain", gain, low=0.0)
+        if isinstance(adjacency, str):
+            if adjacency != "ring":
+                raise ValueError(f"KuramotoGroup: adjacency must be 'ring' or an {n}x{n} matrix, got {adjacency!r}")
+            adjacency = ring_adjacency(n)
+        self.adjacency = finite_array(self, "adjacency", adjacency, shape=(n, n))
+        if assisted is not None and (
+            isinstance(assisted, bool) or not isinstance(assisted, (int, np.integer)) or not 0 <= assisted < n
+        ):
+            raise ValueError(
+                f"KuramotoGroup: assisted must be a 0-based index in [0, {n - 1}] or None, got {assisted!r}"
+            )
+        self.assisted = None if assisted is None else int(assisted)
+        theta0 = np.broadcast_to(finite_array(self, "theta0", theta0), (n,))
+        self.add_input("omega", shape=(n,), unit="rad/s", default=self.omega0, feedthrough=False)
+        if self.assisted is not None:
+            self.add_input("theta_l2", PHASE, feedthrough=False)
+        self.add_output("theta", PHASE.with_(shape=(n,)), initial=np.mod(theta0, TWO_PI))
+        self.add_state("phase", np.mod(theta0, TWO_PI).astype(float))
+        self._seen = np.zeros(n)
+        self._diff = np.zeros((n, n))
+
+    def output(self, k: int) -> None:
+        self.theta.value[...] = self.phase
+
+    def update(self, k: int) -> None:
+        seen = self._seen
+        seen[...] = self.phase
+        if self.assisted is not None:
+            seen[self.assisted] = self.theta_l2.value
+        d = self._diff
+        np.subtract(seen[None, :], seen[:, None], out=d)
+        np.sin(d, out=d)
+        d *= self.adjacency
+        rate = d.sum(axis=1)
+        rate *= self.gain
+        rate += self.omega.value
+        rate *= self.dt
+        self.phase += rate
+        np.mod(self.phase, TWO_PI, out=self.phase)
+
+
+class KuramotoOscillator(Block):
+    """One Kuramoto oscillator coupled to ``n_neighbours`` scalar phase inputs.
+
+    ``θ ← wrap(θ + dt (ω + gain Σ_j sin(θ_j − θ)))``. Lets a group be built one
+    block per participant (each with its own rate or model).
+
+    Ports: inputs ``theta_0 … theta_{n-1}`` (rad, not feedthrough), output ``theta``.
+    """
+
+    def __init__(
+        self,
+        omega: float,
+        gain: float,
+        n_neighbours: int,
+        *,
+        theta0: float = 0.0,
+        period: float | None = None,
+    ) -> None:
+        super().__init__(period=period)
+        self.omega = finite_number(self, "omega", omega)
+        self.gain = finite_number(self, "gain", gain, low=0.0)
+        n = positive_int(self, "n_neighbours", n_neighbours, minimum=0)
+        self._neighbours = [self.add_input(f"theta_{j}", PHASE, feedthrough=False) for j in range(n)]
+        theta0 = finite_number(self, "theta0", theta0) % TWO_PI
+        self.add_output("theta", PHASE, initial=theta0)
+        self.add_state("phase", theta0)
+
+    def output(self, k: int) -> None:
+        self.theta.value[...] = self.phase
+
+    def update(self, k: int) -> None:
+        phase = self.phase
+        coupling = 0.0
+        for port in self._neighbours:
+            coupling += math.sin(float(port.value) - phase)
+        self.phase = (phase + self.dt * (self.omega + self.gain * coupling)) % TWO_PI
+
+
+class OrderParameter(Block):
+    """Kuramoto order parameter ``r = |mean_i exp(j θ_i)|`` (eq. 2), in [0, 1].
+
+    Ports: input ``theta`` (shape (N,), rad), output ``r`` (scalar, dimensionless).
+
+    Notes
+    -----
+    Bad data policy: non-finite phases are left out of the mean; with no finite
+    phase the output holds its last value.
+    """
+
+    def __init__(self, *, period: float | None = None) -> None:
+        super().__init__(period=period)
+        self.add_input("theta", Signal(shape=None, unit="rad", wrapped=None))
+        self.add_output("r", Signal(), initial=1.0)
+
+    def setup(self) -> None:
+        if len(self.theta.spec.shape) != 1 or self.theta.spec.shape[0] < 1:
+            raise self._fail(f"theta must be a vector of phases, got shape {self.theta.spec.shape}")
+        self._n = self.theta.spec.shape[0]
+
+    def output(self, k: int) -> None:
+        theta = self.theta.value
+        c = np.cos(theta).sum()
+        s = np.sin(theta).sum()
+        if math.isfinite(c) and math.isfinite(s):
+            self.r.value[...] = math.hypot(c, s) / self._n
+            return
+        ok = np.isfinite(theta)
+        if ok.any():
+            self.r.value[...] = abs(np.exp(1j * theta[ok]).mean())

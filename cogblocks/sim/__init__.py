@@ -1,0 +1,24 @@
+"""The cogblocks engine: typed-port blocks, hierarchical diagrams, a fixed-step multirate scheduler."""
+
+from cogblocks.sim.block import Block
+from cogblocks.sim.compiled import CompiledDiagram
+from cogblocks.sim.diagram import Diagram
+from cogblocks.sim.errors import DiagramError, SimulationError
+from cogblocks.sim.ports import Input, Output
+from cogblocks.sim.signal import ANY, Signal
+from cogblocks.sim.simulator import Simulator
+from cogblocks.sim.trace import Trace
+
+__all__ = [
+    "ANY",
+    "Block",
+    "CompiledDiagram",
+    "Diagram",
+    "DiagramError",
+    "Input",
+    "Output",
+    "Signal",
+    "SimulationError",
+    "Simulator",
+    "Trace",
+]

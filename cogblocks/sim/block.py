@@ -1,0 +1,270 @@
+"""The Block base class: typed ports, explicit state, two-phase tick."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+import numpy as np
+
+from cogblocks.sim.errors import DiagramError
+from cogblocks.sim.ports import Input, Output
+from cogblocks.sim.signal import Signal
+
+__all__ = ["Block"]
+
+_SPEC_FIELDS = ("shape", "dtype", "unit", "wrapped")
+
+
+def _spec_from(spec: Signal | None, fields: dict[str, Any], defaults: Signal) -> Signal:
+    unknown = set(fields) - set(_SPEC_FIELDS)
+    if unknown:
+        raise TypeError(f"unknown signal field(s) {sorted(unknown)}; allowed: {list(_SPEC_FIELDS)}")
+    if spec is not None:
+        if fields:
+            raise TypeError("give either a Signal spec or its fields, not both")
+        return spec
+    return defaults.with_(**fields) if fields else defaults
+
+
+class Block:
+    """Base class of every block.
+
+    A block declares its ports and state in ``__init__`` (after calling
+    ``super().__init__()``), may finish allocating in :meth:`setup` once its
+    input specs and time step are known, and implements the two phases of a
+    tick:
+
+    * :meth:`output` computes the outputs of tick ``k`` from the state and the
+      *feedthrough* inputs, writing them in place into ``port.value``;
+    * :meth:`update` advances the state from tick ``k`` to ``k + 1``.
+
+    Parameters
+    ----------
+    period : float, optional
+        Seconds between two runs of this block. Must be a multiple of the
+        diagram's base step; between its runs the block's outputs hold (zero-order
+        hold). Defaults to the enclosing diagram's period, or the base step.
+
+    Attributes
+    ----------
+    dt : float
+        The block's own step in seconds (its period), set when compiled.
+    every : int
+        Base ticks between two runs of the block, set when compiled.
+    name : str or None
+        The block's name in its diagram.
+    """
+
+    def __init__(self, *, period: float | None = None) -> None:
+        self._inputs: dict[str, Input] = {}
+        self._outputs: dict[str, Output] = {}
+        self._state_init: dict[str, Any] = {}
+        self.name: str | None = None
+        self.period = period
+        self.dt: float = 0.0
+        self.every: int = 1
+
+    # -- declaration ---------------------------------------------------------
+    def _check_init(self, name: str) -> None:
+        if "_inputs" not in self.__dict__:
+            raise TypeError(
+                f"{type(self).__name__}.__init__ must call super().__init__() before declaring ports or state"
+            )
+        if not name.isidentifier():
+            raise ValueError(f"port and state names must be Python identifiers, got {name!r}")
+        if name in self._inputs or name in self._outputs or name in self._state_init:
+            raise ValueError(f"{type(self).__name__} already declares {name!r}")
+        if name in self.__dict__ or hasattr(type(self), name):
+            raise ValueError(f"{type(self).__name__}: {name!r} would shadow an attribute of the block")
+
+    def add_input(
+        self,
+        name: str,
+        spec: Signal | None = None,
+        *,
+        default: Any = None,
+        feedthrough: bool = True,
+        **fields: Any,
+    ) -> Input:
+        """Declare an input port and make it the attribute ``self.<name>``.
+
+        Parameters
+        ----------
+        name : str
+            Port name.
+        spec : Signal, optional
+            The accepted signal; or give its fields (``shape``, ``dtype``, ``unit``,
+            ``wrapped``) as keywords. Fields left ``None`` accept anything.
+        default : array_like, optional
+            Value read when the input is left unconnected. Without a default, an
+            unconnected input is a compile error.
+        feedthrough : bool
+            Whether :meth:`output` reads this input (default ``True``). Inputs read
+            only by :meth:`update` are declared ``feedthrough=False``; this is what
+            lets feedback loops through the block compile.
+        """
+        self._check_init(name)
+        port = Input(self, name, _spec_from(spec, fields, Signal()), default=default, feedthrough=feedthrough)
+        if port.default is not None and port.spec.shape is not None and port.default.shape not in ((), port.spec.shape):
+            raise ValueError(
+                f"{type(self).__name__}.{name}: default of shape {port.default.shape} "
+                f"does not fit shape {port.spec.shape}"
+            )
+        self._inputs[name] = port
+        object.__setattr__(self, name, port)
+        return port
+
+    def add_output(
+        self,
+        name: str,
+        spec: Signal | None = None,
+        *,
+        like: str | None = None,
+        initial: Any = None,
+        **fields: Any,
+    ) -> Output:
+        """Declare an output port and make it the attribute ``self.<name>``.
+
+        Parameters
+        ----------
+        name : str
+            Port name.
+        spec : Signal, optional
+            The produced signal, or its fields as keywords.
+        like : str, optional
+            Name of an input of this block whose (resolved) spec this output
+            copies; keyword fields then override single fields (for instance
+            ``like="u", wrapped=False``).
+        initial : array_like, optional
+            Value of the output before the block first runs and after ``reset``
+            (zeros by default).
+        """
+        self._check_init(name)
+        if like is not None:
+            if like not in self._inputs:
+                raise ValueError(f"{type(self).__name__}.{name}: like={like!r} names no input of the block")
+            if spec is not None:
+                raise TypeError("give either a spec or like=, not both")
+            port = Output(self, name, None, like=like, like_overrides=fields, initial=initial)
+        else:
+            resolved = _spec_from(spec, fields, Signal())
+            if not resolved.concrete:
+                raise ValueError(f"{type(self).__name__}.{name}: an output spec must fix every field, got {resolved}")
+            port = Output(self, name, resolved, initial=initial)
+        self._outputs[name] = port
+        object.__setattr__(self, name, port)
+        return port
+
+    def add_state(self, name: str, value: Any) -> None:
+        """Declare a piece of state, set ``self.<name> = value``, and remember it.
+
+        Declared state is what :meth:`reset` restores and what
+        :meth:`state_dict` snapshots. Arrays, numbers and ``numpy.random.Generator``
+        objects are supported (a generator is snapshotted by its bit-generator
+        state). May be called again in :meth:`setup` to redefine the initial value.
+        """
+        if name in self._state_init:
+            self._state_init[name] = _snapshot(value)
+            object.__setattr__(self, name, value)
+            return
+        self._check_init(name)
+        self._state_init[name] = _snapshot(value)
+        object.__setattr__(self, name, value)
+
+    # -- introspection -------------------------------------------------------
+    @property
+    def inputs(self) -> Mapping[str, Input]:
+        """The block's input ports by name."""
+        return self._inputs
+
+    @property
+    def outputs(self) -> Mapping[str, Output]:
+        """The block's output ports by name."""
+        return self._outputs
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the declared state."""
+        return tuple(self._state_init)
+
+    @property
+    def stateful(self) -> bool:
+        """Whether the block has an ``update`` phase."""
+        return type(self).update is not Block.update
+
+    def iter_ports(self) -> Iterator[Input | Output]:
+        yield from self._inputs.values()
+        yield from self._outputs.values()
+
+    def __repr__(self) -> str:
+        ins = ", ".join(self._inputs)
+        outs = ", ".join(self._outputs)
+        label = f" {self.name!r}" if self.name else ""
+        return f"<{type(self).__name__}{label} in=({ins}) out=({outs})>"
+
+    # -- lifecycle -----------------------------------------------------------
+    def setup(self) -> None:
+        """Finish construction once ``self.dt`` and every input spec are known.
+
+        Called at compile time; the default does nothing. Override it to size
+        state from the resolved input specs or to design filters for ``self.dt``.
+        """
+
+    def output(self, k: int) -> None:
+        """Write the outputs of base tick ``k`` into the output ports' ``value`` arrays."""
+
+    def update(self, k: int) -> None:
+        """Advance the state from tick ``k`` to the block's next tick."""
+
+    def reset(self) -> None:
+        """Restore the declared state and the outputs to their initial values."""
+        for name, init in self._state_init.items():
+            current = self.__dict__.get(name)
+            if isinstance(current, np.random.Generator):
+                current.bit_generator.state = copy.deepcopy(init)
+            else:
+                object.__setattr__(self, name, copy.deepcopy(init))
+        for port in self._outputs.values():
+            if port.initial is not None:
+                port.value[...] = port.initial
+            else:
+                port.value[...] = 0
+
+    def state_dict(self) -> dict[str, Any]:
+        """A deep copy of the block's declared state and current outputs."""
+        return {
+            "state": {name: _snapshot(self.__dict__[name]) for name in self._state_init},
+            "outputs": {name: port.value.copy() for name, port in self._outputs.items()},
+        }
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore what :meth:`state_dict` returned."""
+        try:
+            saved_state, saved_outputs = state["state"], state["outputs"]
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"{self.name or type(self).__name__}: not a block state dict") from exc
+        if set(saved_state) != set(self._state_init) or set(saved_outputs) != set(self._outputs):
+            raise ValueError(
+                f"{self.name or type(self).__name__}: state dict has state {sorted(saved_state)} and outputs "
+                f"{sorted(saved_outputs)}, the block has {sorted(self._state_init)} and {sorted(self._outputs)}"
+            )
+        for name, value in saved_state.items():
+            current = self.__dict__.get(name)
+            if isinstance(current, np.random.Generator):
+                current.bit_generator.state = copy.deepcopy(value)
+            else:
+                object.__setattr__(self, name, copy.deepcopy(value))
+        for name, value in saved_outputs.items():
+            self._outputs[name].value[...] = value
+
+    # -- helpers for subclasses ----------------------------------------------
+    def _fail(self, message: str) -> DiagramError:
+        return DiagramError(f"{self.name or type(self).__name__}: {message}")
+
+
+def _snapshot(value: Any) -> Any:
+    if isinstance(value, np.random.Generator):
+        return copy.deepcopy(value.bit_generator.state)
+    return copy.deepcopy(value)

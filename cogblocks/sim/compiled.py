@@ -1,0 +1,439 @@
+"""The compiled plan: a flattened, ordered, pre-bound diagram that runs tick by tick."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cogblocks.sim.block import Block
+from cogblocks.sim.errors import DiagramError, SimulationError
+from cogblocks.sim.ports import Input, Output
+from cogblocks.sim.signal import Signal
+
+if TYPE_CHECKING:
+    from cogblocks.sim.diagram import Diagram
+
+__all__ = ["CompiledDiagram"]
+
+# Above this many distinct tick phases the per-phase schedule is built on demand.
+_MAX_PHASES = 4096
+
+
+class CompiledDiagram:
+    """A diagram validated, flattened and ordered for running.
+
+    Built by :meth:`Diagram.compile`. Every signal lives in one preallocated
+    array shared by the output that writes it and the inputs that read it, and
+    the per-tick work is a precomputed list of bound methods, so a tick does no
+    graph work and no dictionary look-ups.
+
+    Attributes
+    ----------
+    dt : float
+        Base step in seconds.
+    k : int
+        Index of the next tick to run.
+    blocks : dict
+        Leaf blocks by dotted path, in execution order.
+    """
+
+    def __init__(self, diagram: Diagram, dt: float = 0.01) -> None:
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise DiagramError(f"the base step dt must be a positive number of seconds, got {dt!r}")
+        self.diagram = diagram
+        self.dt = float(dt)
+        self.k = 0
+        leaves: dict[str, Block] = {}
+        periods: dict[str, float | None] = {}
+        drivers: dict[Input, Output] = {}
+        external: dict[str, list[Input]] = {}
+        self._flatten(diagram, "", None, leaves, periods, drivers, external)
+        self._ext_outputs = {name: self._leaf_output(diagram, name) for name in diagram._exposed_out}
+        self._paths = {id(b): p for p, b in leaves.items()}
+        self._drivers = drivers
+        self._check_driven(leaves, drivers, external)
+        self._resolve_specs(leaves, drivers, external)
+        ticks = self._periods(leaves, periods)
+        for path, block in leaves.items():
+            block.dt = ticks[path] * self.dt
+            block.every = ticks[path]
+            for port in block._outputs.values():
+                port.value = port.spec.zeros()
+            block.setup()
+        self._bind(leaves, drivers, external)
+        order = self._order(leaves, drivers)
+        self.blocks = {p: leaves[p] for p in order}
+        self._ticks = [ticks[p] for p in order]
+        self._build_schedule()
+        self._output_arrays = [(port, port.value) for b in self.blocks.values() for port in b._outputs.values()]
+        self.reset()
+
+    # -- flattening ----------------------------------------------------------
+    def _flatten(self, d, prefix, period, leaves, periods, drivers, external) -> None:
+        from cogblocks.sim.diagram import Diagram
+
+        own_period = d.period if d.period is not None else period
+        for name, child in d._children.items():
+            path = prefix + name
+            if isinstance(child, Diagram):
+                self._flatten(child, path + ".", own_period, leaves, periods, drivers, external)
+            else:
+                leaves[path] = child
+                periods[path] = child.period if child.period is not None else own_period
+        for s_child, s_port, d_child, d_port in d._wires:
+            src = self._leaf_output(d._children[s_child], s_port)
+            for dst in self._leaf_inputs(d._children[d_child], d_port):
+                drivers[dst] = src
+        if not prefix:
+            for name in d._exposed_in:
+                external[name] = self._leaf_inputs(d, name)
+
+    def _leaf_output(self, block: Block, port: str) -> Output:
+        from cogblocks.sim.diagram import Diagram
+
+        while isinstance(block, Diagram):
+            child, port = block._exposed_out[port]
+            block = block._children[child]
+        return block._outputs[port]
+
+    def _leaf_inputs(self, block: Block, port: str) -> list[Input]:
+        from cogblocks.sim.diagram import Diagram
+
+        if not isinstance(block, Diagram):
+            return [block._inputs[port]]
+        found: list[Input] = []
+        for child, child_port in block._exposed_in[port]:
+            found.extend(self._leaf_inputs(block._children[child], child_port))
+        return found
+
+    def _name(self, port: Input | Output) -> str:
+        return f"{self._paths[id(port.block)]}.{port.name}"
+
+    # -- validation ----------------------------------------------------------
+    def _check_driven(self, leaves, drivers, external) -> None:
+        fed_externally = {inp for targets in external.values() for inp in targets}
+        missing = [
+            self._name(inp)
+            for block in leaves.values()
+            for inp in block._inputs.values()
+            if inp not in drivers and inp not in fed_externally and inp.default is None
+        ]
+        if missing:
+            raise DiagramError(
+                "unconnected input(s) with no default: "
+                + ", ".join(missing)
+                + "; connect them, expose them as diagram inputs, or give the port a default"
+            )
+
+    def _resolve_specs(self, leaves, drivers, external) -> None:
+        ext_specs = {inp: self.diagram._inputs[name].spec for name, targets in external.items() for inp in targets}
+
+        def source_spec(inp: Input) -> Signal | None:
+            if inp in drivers:
+                return drivers[inp].spec
+            if inp in ext_specs:
+                spec = ext_specs[inp]
+                return spec if spec.concrete else None
+            default = inp.default
+            return inp.declared.merge(
+                Signal(shape=default.shape, dtype=np.float64 if default.dtype.kind in "iuf" else default.dtype)
+            )
+
+        pending = [o for b in leaves.values() for o in b._outputs.values() if o.like is not None]
+        for out in pending:
+            out.spec = None
+        while pending:
+            progressed = []
+            for out in pending:
+                spec = source_spec(out.block._inputs[out.like])
+                if spec is not None:
+                    # an override may be a function of the copied field (an integrator's unit)
+                    out.spec = spec.with_(
+                        **{
+                            field: value(getattr(spec, field)) if callable(value) else value
+                            for field, value in out.like_overrides.items()
+                        }
+                    )
+                    progressed.append(out)
+            if not progressed:
+                names = ", ".join(self._name(o) for o in pending)
+                raise DiagramError(
+                    f"cannot infer the spec of {names}: their inputs are fed only by other generic blocks "
+                    "(a loop); give one of them an explicit spec (shape=..., unit=...)"
+                )
+            pending = [o for o in pending if o not in progressed]
+        for block in leaves.values():
+            for inp in block._inputs.values():
+                spec = source_spec(inp)
+                if spec is None:
+                    raise DiagramError(
+                        f"input {self._name(inp)} is fed by a diagram input whose spec is not fully known "
+                        f"({inp.declared}); give expose_input(..., spec=Signal(...))"
+                    )
+                src_name = self._name(drivers[inp]) if inp in drivers else "its source"
+                problem = spec.mismatch(inp.declared)
+                if problem:
+                    raise DiagramError(
+                        f"cannot connect {src_name} {spec} to {self._name(inp)} {inp.declared}: {problem}"
+                    )
+                inp.spec = inp.declared.merge(spec)
+        for name, port in self.diagram._outputs.items():
+            port.spec = self._ext_outputs[name].spec
+
+    def _periods(self, leaves, periods) -> dict[str, int]:
+        ticks: dict[str, int] = {}
+        for path, period in periods.items():
+            if period is None:
+                ticks[path] = 1
+                continue
+            n = round(period / self.dt) if period > 0 else 0
+            if not (
+                isinstance(period, (int, float))
+                and period > 0
+                and n >= 1
+                and abs(n * self.dt - period) <= 1e-9 * max(1.0, period)
+            ):
+                raise DiagramError(
+                    f"block {path!r} asks for a period of {period!r} s, which is not a positive multiple of the "
+                    f"base step {self.dt} s; use k * {self.dt} for an integer k >= 1"
+                )
+            ticks[path] = n
+        return ticks
+
+    def _bind(self, leaves, drivers, external) -> None:
+        self._external: dict[str, np.ndarray] = {}
+        for name, targets in external.items():
+            spec = self.diagram._inputs[name].spec
+            arr = targets[0].spec.merge(spec).zeros()
+            self._external[name] = arr
+            for inp in targets:
+                inp.value = arr
+        for block in leaves.values():
+            for inp in block._inputs.values():
+                if inp in drivers:
+                    inp.value = drivers[inp].value
+                elif not any(inp in t for t in external.values()):
+                    inp.value = np.array(np.broadcast_to(inp.default, inp.spec.shape), dtype=inp.spec.dtype)
+
+    def _order(self, leaves, drivers) -> list[str]:
+        """Topological order over feedthrough wires; refuse algebraic loops."""
+        paths = list(leaves)
+        index = {id(b): p for p, b in leaves.items()}
+        deps: dict[str, list[tuple[str, Input]]] = {p: [] for p in paths}
+        for inp, src in drivers.items():
+            if inp.feedthrough:
+                deps[index[id(inp.block)]].append((index[id(src.block)], inp))
+        order: list[str] = []
+        state: dict[str, int] = {}  # 1 = on the stack, 2 = placed
+        for root in paths:
+            if root in state:
+                continue
+            stack: list[tuple[str, int]] = [(root, 0)]
+            state[root] = 1
+            while stack:
+                node, i = stack[-1]
+                if i < len(deps[node]):
+                    stack[-1] = (node, i + 1)
+                    nxt, _ = deps[node][i]
+                    if state.get(nxt) == 1:
+                        raise DiagramError("algebraic loop: " + self._describe_cycle(stack, nxt, deps))
+                    if nxt not in state:
+                        state[nxt] = 1
+                        stack.append((nxt, 0))
+                else:
+                    stack.pop()
+                    state[node] = 2
+                    order.append(node)
+        return order
+
+    def _describe_cycle(self, stack, start, deps) -> str:
+        nodes = [n for n, _ in stack]
+        cycle = nodes[nodes.index(start) :]
+        hops = []
+        # the stack goes from a block to the block it depends on: reverse for signal flow
+        for a, b in zip(cycle, cycle[1:] + [start], strict=True):
+            inp = next(i for src, i in deps[a] if src == b)
+            hops.append(f"{self._name(self._drivers[inp])} -> {self._name(inp)}")
+        hops.reverse()
+        return (
+            ", ".join(hops) + " (every block on it feeds its input straight to its output; break it with a UnitDelay)"
+        )
+
+    # -- schedule ------------------------------------------------------------
+    def _build_schedule(self) -> None:
+        blocks = list(self.blocks.values())
+        # blocks that only hold a value (Constant) or are only read (Probe) need no call
+        self._outs_all = [
+            (n, b.output) for n, b in zip(self._ticks, blocks, strict=True) if type(b).output is not Block.output
+        ]
+        self._upds_all = [(n, b.update) for n, b in zip(self._ticks, blocks, strict=True) if b.stateful]
+        hyper = 1
+        for n in set(self._ticks):
+            hyper = hyper * n // math.gcd(hyper, n)
+        self._hyper = hyper
+        self._phases: list[tuple[tuple[Callable, ...], tuple[Callable, ...]]] | None = None
+        if hyper <= _MAX_PHASES:
+            self._phases = [self._phase(k) for k in range(hyper)]
+
+    def _phase(self, k: int) -> tuple[tuple[Callable, ...], tuple[Callable, ...]]:
+        return (
+            tuple(f for n, f in self._outs_all if k % n == 0),
+            tuple(f for n, f in self._upds_all if k % n == 0),
+        )
+
+    def _tick_functions(self):
+        """Per-tick (outputs, updates) lookup: a table, or a function for huge hyperperiods."""
+        if self._phases is not None:
+            phases, hyper = self._phases, self._hyper
+            return lambda k: phases[k % hyper]
+        return self._phase
+
+    # -- running -------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """Time of the next tick, in seconds."""
+        return self.k * self.dt
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        """Names of the top-level diagram inputs that :meth:`step` and runs feed."""
+        return tuple(self._external)
+
+    @property
+    def output_names(self) -> tuple[str, ...]:
+        """Names of the top-level diagram outputs that :meth:`step` returns."""
+        return tuple(self._ext_outputs)
+
+    def set_inputs(self, **inputs: Any) -> None:
+        """Write the top-level diagram inputs for the next tick."""
+        for name, value in inputs.items():
+            try:
+                arr = self._external[name]
+            except KeyError:
+                raise KeyError(f"the diagram has no input {name!r}; its inputs are {list(self._external)}") from None
+            try:
+                arr[...] = value
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"input {name!r} expects shape {arr.shape}, got {np.shape(value)}") from exc
+
+    def step(self, **inputs: Any) -> dict[str, Any]:
+        """Run one tick with the given top-level inputs; return the top-level outputs.
+
+        Inputs not given keep their previous value. Outputs are copies: scalars as
+        ``float``, vectors as arrays. This is the call to make inside a live loop.
+        """
+        missing = [n for n in self._external if n not in inputs and self.k == 0]
+        if missing:
+            raise ValueError(f"the first step needs every diagram input; missing {missing}")
+        self.set_inputs(**inputs)
+        outs, upds = self._tick_functions()(self.k)
+        k = self.k
+        for f in outs:
+            f(k)
+        result = {
+            name: (port.value.item() if port.value.ndim == 0 else port.value.copy())
+            for name, port in self._ext_outputs.items()
+        }
+        for f in upds:
+            f(k)
+        self.k = k + 1
+        if k == 0:
+            self._check_outputs_in_place()
+        return result
+
+    def _check_outputs_in_place(self) -> None:
+        for port, arr in self._output_arrays:
+            if port.value is not arr:
+                raise SimulationError(
+                    f"block {self._name(port)[: -len(port.name) - 1]!r} replaced the array of its output "
+                    f"{port.name!r} instead of writing into it; write with port.value[...] = x"
+                )
+
+    def advance(
+        self,
+        n_steps: int,
+        record: Callable[[int], None] | None = None,
+        feed: Callable[[int], None] | None = None,
+    ) -> None:
+        """Run ``n_steps`` ticks; ``feed(k)`` writes inputs before, ``record(k)`` reads after the outputs."""
+        tick = self._tick_functions()
+        k = self.k
+        end = k + n_steps
+        if k == 0 and n_steps > 0:
+            self._run_ticks(tick, 0, 1, record, feed)
+            self._check_outputs_in_place()
+            k = 1
+        self._run_ticks(tick, k, end, record, feed)
+
+    def _run_ticks(self, tick, k: int, end: int, record, feed) -> None:
+        # The hot loop: kept free of attribute look-ups and allocation.
+        try:
+            if record is None and feed is None:
+                while k < end:
+                    outs, upds = tick(k)
+                    for f in outs:
+                        f(k)
+                    for f in upds:
+                        f(k)
+                    k += 1
+            else:
+                while k < end:
+                    if feed is not None:
+                        feed(k)
+                    outs, upds = tick(k)
+                    for f in outs:
+                        f(k)
+                    if record is not None:
+                        record(k)
+                    for f in upds:
+                        f(k)
+                    k += 1
+        finally:
+            self.k = k
+
+    def reset(self) -> None:
+        """Restore every block to its initial state and rewind to tick 0."""
+        for block in self.blocks.values():
+            block.reset()
+        for arr in self._external.values():
+            arr[...] = 0
+        self.k = 0
+
+    def state_dict(self) -> dict[str, Any]:
+        """Snapshot: the tick counter, every block's state and outputs, the diagram inputs."""
+        return {
+            "k": self.k,
+            "blocks": {path: block.state_dict() for path, block in self.blocks.items()},
+            "inputs": {name: arr.copy() for name, arr in self._external.items()},
+        }
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore a snapshot taken with :meth:`state_dict` on the same diagram."""
+        if set(state.get("blocks", {})) != set(self.blocks):
+            raise ValueError(
+                f"state dict is for blocks {sorted(state.get('blocks', {}))}, this diagram has {sorted(self.blocks)}"
+            )
+        for path, block_state in state["blocks"].items():
+            self.blocks[path].load_state_dict(block_state)
+        for name, value in state.get("inputs", {}).items():
+            self._external[name][...] = value
+        self.k = int(state["k"])
+
+    # -- looking things up ---------------------------------------------------
+    def output_port(self, path: str) -> Output:
+        """The leaf output behind ``"block.port"`` (dotted through sub-diagrams)."""
+        block_path, _, port = path.rpartition(".")
+        try:
+            block = self.diagram[block_path] if block_path else None
+        except KeyError:
+            block = None
+        if block is None or port not in block._outputs:
+            raise KeyError(f"{path!r} is not an output port of the diagram")
+        return self._leaf_output(block, port)
+
+    def path_of(self, block: Block) -> str:
+        """The dotted path of a leaf block."""
+        return self._paths[id(block)]

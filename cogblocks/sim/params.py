@@ -1,0 +1,82 @@
+"""Checks of constructor parameters, with messages that name the parameter, the value and what is allowed."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+__all__ = ["finite_array", "finite_number", "positive_int", "one_of"]
+
+
+def _owner(owner: object) -> str:
+    return owner if isinstance(owner, str) else type(owner).__name__
+
+
+def finite_number(
+    owner: object,
+    name: str,
+    value: Any,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """Return ``value`` as a float, or raise ``ValueError`` if it is not finite or out of range."""
+    lo = "(" if low_open else "["
+    hi = ")" if high_open else "]"
+    allowed = f"a finite number in {lo}{'-inf' if low is None else low}, {'inf' if high is None else high}{hi}"
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {value!r}") from None
+    if isinstance(value, bool) or not math.isfinite(x):
+        raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {value!r}")
+    if low is not None and (x < low or (low_open and x == low)):
+        raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {value!r}")
+    if high is not None and (x > high or (high_open and x == high)):
+        raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {value!r}")
+    return x
+
+
+def positive_int(owner: object, name: str, value: Any, *, minimum: int = 1) -> int:
+    """Return ``value`` as an int >= ``minimum``, or raise ``ValueError``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{_owner(owner)}: {name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def finite_array(
+    owner: object,
+    name: str,
+    value: Any,
+    *,
+    shape: tuple[int | None, ...] | None = None,
+    ndim: int | None = None,
+) -> np.ndarray:
+    """Return ``value`` as a float64 array with only finite entries, optionally of a given shape."""
+    try:
+        arr = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{_owner(owner)}: {name} must be an array of finite numbers, got {value!r}") from None
+    if ndim is not None and arr.ndim != ndim:
+        raise ValueError(f"{_owner(owner)}: {name} must have {ndim} dimension(s), got shape {arr.shape}")
+    if shape is not None and (
+        arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape, strict=True))
+    ):
+        want = "(" + ", ".join("any" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"{_owner(owner)}: {name} must have shape {want}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{_owner(owner)}: {name} must contain only finite numbers, got {value!r}")
+    return arr
+
+
+def one_of(owner: object, name: str, value: Any, allowed: Iterable[Any]) -> Any:
+    """Return ``value`` if it is one of ``allowed``, else raise ``ValueError``."""
+    options = list(allowed)
+    if value not in options:
+        raise ValueError(f"{_owner(owner)}: {name} must be one of {options}, got {value!r}")
+    return value

@@ -1,0 +1,109 @@
+"""Signal specs: what travels on a wire (shape, dtype, unit, wrapped angle)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Signal", "ANY"]
+
+
+def _as_shape(shape: Any) -> tuple[int, ...] | None:
+    if shape is None:
+        return None
+    if isinstance(shape, (int, np.integer)):
+        shape = (int(shape),)
+    try:
+        out = tuple(int(s) for s in shape)
+    except TypeError as exc:
+        raise ValueError(f"shape must be a tuple of non-negative ints, got {shape!r}") from exc
+    if any(s < 0 for s in out):
+        raise ValueError(f"shape must be a tuple of non-negative ints, got {shape!r}")
+    return out
+
+
+@dataclass(frozen=True)
+class Signal:
+    """The spec of a signal carried by a port.
+
+    Parameters
+    ----------
+    shape : tuple of int, int or None
+        Array shape of one sample; ``()`` is a scalar. ``None`` on an input means
+        "any shape".
+    dtype : numpy dtype-like or None
+        Element type, ``float64`` by default. ``None`` on an input means "any".
+    unit : str or None
+        Physical unit, for instance ``"rad"``, ``"mm"``, ``"mm/s"`` or ``"1"`` for
+        dimensionless. ``None`` on an input means "any unit".
+    wrapped : bool or None
+        Whether the signal is an angle wrapped to one turn. ``None`` on an input
+        means "either".
+
+    Notes
+    -----
+    Two specs are compatible when every field that both of them fix is equal. An
+    input declared with ``None`` fields accepts any value of those fields; an
+    output's spec must be concrete once the diagram is compiled.
+    """
+
+    shape: tuple[int, ...] | None = ()
+    dtype: Any = np.float64
+    unit: str | None = "1"
+    wrapped: bool | None = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "shape", _as_shape(self.shape))
+        if self.dtype is not None:
+            object.__setattr__(self, "dtype", np.dtype(self.dtype))
+        if self.unit is not None and not isinstance(self.unit, str):
+            raise ValueError(f"unit must be a string or None, got {self.unit!r}")
+        if self.wrapped is not None and not isinstance(self.wrapped, (bool, np.bool_)):
+            raise ValueError(f"wrapped must be a bool or None, got {self.wrapped!r}")
+
+    @property
+    def concrete(self) -> bool:
+        """True when no field is left open."""
+        # ``is`` rather than ``in``: numpy compares dtype('float64') == None as True
+        return all(v is not None for v in (self.shape, self.dtype, self.unit, self.wrapped))
+
+    def mismatch(self, other: Signal) -> str | None:
+        """Describe the first field on which ``self`` and ``other`` disagree, or None."""
+        for field in ("shape", "dtype", "unit", "wrapped"):
+            a, b = getattr(self, field), getattr(other, field)
+            if a is not None and b is not None and a != b:
+                return f"{field} {a!r} != {b!r}"
+        return None
+
+    def merge(self, other: Signal) -> Signal:
+        """The spec that fixes every field either of the two fixes (they must agree)."""
+        return Signal(
+            shape=self.shape if self.shape is not None else other.shape,
+            dtype=self.dtype if self.dtype is not None else other.dtype,
+            unit=self.unit if self.unit is not None else other.unit,
+            wrapped=self.wrapped if self.wrapped is not None else other.wrapped,
+        )
+
+    def with_(self, **changes: Any) -> Signal:
+        """A copy with some fields changed."""
+        return replace(self, **changes)
+
+    def zeros(self) -> np.ndarray:
+        """A zero-filled array holding one sample of this (concrete) signal."""
+        return np.zeros(self.shape, dtype=self.dtype)
+
+    def __str__(self) -> str:
+        def show(v: Any, fmt: Any = repr) -> str:
+            return "any" if v is None else fmt(v)
+
+        shape = show(self.shape, lambda s: "(" + ", ".join(map(str, s)) + ("," if len(s) == 1 else "") + ")")
+        return (
+            f"Signal(shape={shape}, dtype={show(self.dtype, str)}, "
+            f"unit={show(self.unit)}, wrapped={show(self.wrapped)})"
+        )
+
+
+#: An input spec that accepts any signal.
+ANY = Signal(shape=None, dtype=None, unit=None, wrapped=None)
