@@ -1,5 +1,6 @@
 """The block library."""
 
+from cogblocks.blocks.blend import Blender
 from cogblocks.blocks.core import (
     Constant,
     Demux,
@@ -12,12 +13,15 @@ from cogblocks.blocks.core import (
     Playback,
     Probe,
     Saturation,
+    Select,
+    Substitute,
     Sum,
     UnitDelay,
 )
 from cogblocks.blocks.group import KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
 
 __all__ = [
+    "Blender",
     "Constant",
     "Demux",
     "DiscreteLTI",
@@ -32,6 +36,8 @@ __all__ = [
     "Playback",
     "Probe",
     "Saturation",
+    "Select",
+    "Substitute",
     "Sum",
     "UnitDelay",
     "ring_adjacency",

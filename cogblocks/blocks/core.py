@@ -29,6 +29,8 @@ __all__ = [
     "Playback",
     "Probe",
     "Saturation",
+    "Select",
+    "Substitute",
     "Sum",
     "UnitDelay",
 ]
@@ -502,6 +504,56 @@ class Demux(Block):
         u = self.u.value
         for i, port in enumerate(self._outs):
             port.value[...] = u[i]
+
+
+class Select(Block):
+    """Pick one element of a vector: ``y = u[index]``.
+
+    Ports: input ``u`` (shape (n,)), output ``y`` (scalar, same unit and wrapping).
+    """
+
+    def __init__(self, index: int, *, period: float | None = None) -> None:
+        super().__init__(period=period)
+        self.index = positive_int(self, "index", index, minimum=0)
+        self.add_input("u", Signal(shape=None, dtype=None, unit=None, wrapped=None))
+        self.add_output("y", like="u", shape=())
+
+    def setup(self) -> None:
+        shape = self.u.spec.shape
+        if len(shape) != 1 or self.index >= shape[0]:
+            raise self._fail(f"index {self.index} does not fit an input of shape {shape}")
+
+    def output(self, k: int) -> None:
+        self.y.value[...] = self.u.value[self.index]
+
+
+class Substitute(Block):
+    """Replace one element of a vector: ``y = u`` with ``y[index] = v``.
+
+    Ports: inputs ``u`` (shape (n,)) and ``v`` (scalar, same unit), output ``y``
+    (spec of ``u``). This is how the L2 avatar's phase takes the assisted
+    participant's place in what the group sees.
+    """
+
+    def __init__(self, index: int, *, period: float | None = None) -> None:
+        super().__init__(period=period)
+        self.index = positive_int(self, "index", index, minimum=0)
+        self.add_input("u", Signal(shape=None, dtype=None, unit=None, wrapped=None))
+        self.add_input("v", Signal(shape=(), dtype=None, unit=None, wrapped=None))
+        self.add_output("y", like="u")
+
+    def setup(self) -> None:
+        shape = self.u.spec.shape
+        if len(shape) != 1 or self.index >= shape[0]:
+            raise self._fail(f"index {self.index} does not fit an input of shape {shape}")
+        problem = self.v.spec.with_(shape=shape).mismatch(self.u.spec)
+        if problem:
+            raise self._fail(f"v ({self.v.spec}) does not match the elements of u ({self.u.spec}): {problem}")
+
+    def output(self, k: int) -> None:
+        y = self.y.value
+        y[...] = self.u.value
+        y[self.index] = self.v.value
 
 
 class DiscreteLTI(Block):
