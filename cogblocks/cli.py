@@ -33,6 +33,27 @@ def _run_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_sync(args: argparse.Namespace) -> int:
+    from cogblocks.diagrams.sync import MOTIONS, plot_sync, run_sync
+
+    motions = list(MOTIONS) if args.policy is None else args.policy
+    result = run_sync(args.group, motions)
+    if args.plot:
+        plot_sync(args.group, motions[0], args.plot)
+
+    def render(r: dict[str, Any]) -> str:
+        lines = [f"Group {r['group']}: time-averaged order parameter without L2 {r['r_without']:.4f}"]
+        for row in r["results"]:
+            lines.append(
+                f"  with L2, {row['policy']:>10}: {row['r_with']:.4f} ({row['change_pct']:+.2f} %), "
+                f"|θ_L2 − θ_L0| mean {row['mean_dev_rad']:.3f} rad, max {row['max_dev_rad']:.3f} rad"
+            )
+        return "\n".join(lines)
+
+    _print_result(result, args.json, render)
+    return 0
+
+
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="cogblocks",
@@ -43,6 +64,14 @@ def _build_parser() -> argparse.ArgumentParser:
     run = commands.add_parser("run", help="run a ready diagram and print its figures")
     targets = run.add_subparsers(dest="target", metavar="TARGET")
     run.set_defaults(handler=lambda _: run.print_help() or 2)
+
+    sync = targets.add_parser("sync", help="PoP of Social Connectedness: Table 3 for one group")
+    sync.add_argument("--group", type=int, choices=(1, 2, 3), default=1, help="Table 2's group number (default 1)")
+    sync.add_argument(
+        "--policy", action="append", metavar="NAME", help="motion computer(s) to run (default: all); repeatable"
+    )
+    _common(sync)
+    sync.set_defaults(handler=_run_sync)
 
     demo = targets.add_parser("demo", help="a Kuramoto group (Table 2, group 3) without L2")
     demo.add_argument("--duration", type=float, default=300.0, help="simulated seconds (default 300)")

@@ -19,6 +19,7 @@ from cogblocks.blocks.core import (
     UnitDelay,
 )
 from cogblocks.blocks.group import KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
+from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
 
 __all__ = [
     "Blender",
@@ -31,6 +32,8 @@ __all__ = [
     "KuramotoGroup",
     "KuramotoOscillator",
     "LowPass",
+    "MeanPhaseMotion",
+    "MotionComputer",
     "Mux",
     "OrderParameter",
     "Playback",

@@ -1,0 +1,220 @@
+"""Motion computers: the reference phase θ_ref that the L2 blender pulls toward (section 5.2.2).
+
+Every motion computer has the same ports, so one can replace another in a diagram:
+
+* input ``theta`` (shape (N,), rad, wrapped): the participants' own phases;
+* input ``lam`` (scalar, rad): the blender's current threshold λ (context for
+  policies that plan within the blender's limit);
+* output ``theta_ref`` (scalar, rad, wrapped).
+
+:class:`MotionComputer` is the structure of the deliverable's L3 reference: a
+virtual Kuramoto oscillator at the assisted participant's node whose frequency
+a policy nudges every tick. :class:`MeanPhaseMotion` is the simplest
+alternative: the circular mean of the others' phases.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from cogblocks.blocks.angles import TWO_PI
+from cogblocks.blocks.group import ring_adjacency
+from cogblocks.sim import Block, Signal
+from cogblocks.sim.params import finite_array, finite_number
+
+__all__ = [
+    "ACTIONS",
+    "OMEGA_L3_LIMIT",
+    "L3Context",
+    "L3Policy",
+    "MeanPhaseMotion",
+    "MotionComputer",
+    "l3_observation",
+]
+
+PHASE = Signal(unit="rad", wrapped=True)
+
+#: Frequency increments (rad/s) an L3 policy chooses from (footnote 3 of the deliverable).
+ACTIONS = np.round(np.arange(-0.5, 0.51, 0.1), 1)
+#: Bound on the virtual oscillator's frequency, rad/s.
+OMEGA_L3_LIMIT = 15.0
+
+
+def l3_observation(theta_l3: Any, theta_others: np.ndarray, omega_prev: Any) -> np.ndarray:
+    """The L3 policy's observation ``[angle(q), 1 − |q|, ω_prev]``.
+
+    ``q = mean_j exp(i wrap_π(θ_L3 − θ_j))`` over the other participants: its
+    angle is where the virtual oscillator sits relative to their circular mean,
+    ``1 − |q|`` how spread they are. Broadcasts over leading axes.
+    """
+    offsets = np.asarray(theta_l3, dtype=float)[..., None] - theta_others
+    q_re = np.cos(offsets).mean(axis=-1)
+    q_im = np.sin(offsets).mean(axis=-1)
+    return np.stack(
+        np.broadcast_arrays(np.arctan2(q_im, q_re), 1.0 - np.hypot(q_re, q_im), np.asarray(omega_prev, dtype=float)),
+        axis=-1,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class L3Context:
+    """What an L3 policy may use at tick ``k``.
+
+    Attributes
+    ----------
+    k : int
+        Tick index.
+    obs : ndarray, shape (3,)
+        :func:`l3_observation` of this tick.
+    theta : ndarray, shape (N,)
+        The participants' own phases; ``theta[assisted]`` is θ_L0.
+    theta_l3 : float
+        Phase of the virtual oscillator, i.e. θ_ref of this tick.
+    lam : float
+        The blender's threshold λ of this tick.
+    omega_prev : float
+        The virtual oscillator's frequency at the previous tick.
+    """
+
+    k: int
+    obs: np.ndarray
+    theta: np.ndarray
+    theta_l3: float
+    lam: float
+    omega_prev: float
+
+
+class L3Policy(Protocol):
+    """Chooses the frequency increment of the virtual oscillator, as an index into :data:`ACTIONS`."""
+
+    def reset(self, omega_init: float) -> None:
+        """Forget any episode memory; the oscillator restarts at ``omega_init``."""
+
+    def act(self, context: L3Context) -> int:
+        """The action index for this tick."""
+
+
+class _MotionPorts(Block):
+    """The ports every motion computer shares."""
+
+    def __init__(self, n: int, period: float | None) -> None:
+        super().__init__(period=period)
+        self.add_input("theta", PHASE.with_(shape=(n,)), feedthrough=self._theta_feedthrough)
+        self.add_input("lam", Signal(unit="rad"), default=math.pi, feedthrough=False)
+        self.add_output("theta_ref", PHASE)
+
+    _theta_feedthrough = True
+
+
+class MeanPhaseMotion(_MotionPorts):
+    """θ_ref is the circular mean of the other participants' phases.
+
+    Needs no training and no model. A natural baseline: it pulls the assisted
+    participant toward where the group is.
+
+    Parameters
+    ----------
+    n : int
+        Number of participants.
+    assisted : int
+        0-based index of the assisted participant (left out of the mean).
+
+    Notes
+    -----
+    Bad data policy: non-finite phases are left out; with none left the
+    output holds.
+    """
+
+    def __init__(self, n: int, assisted: int, *, period: float | None = None) -> None:
+        super().__init__(n, period)
+        if not 0 <= assisted < n:
+            raise ValueError(f"MeanPhaseMotion: assisted must be a 0-based index in [0, {n - 1}], got {assisted!r}")
+        self.others = np.array([j for j in range(n) if j != assisted])
+
+    def output(self, k: int) -> None:
+        phases = self.theta.value[self.others]
+        c, s = np.cos(phases).sum(), np.sin(phases).sum()
+        if math.isfinite(c) and math.isfinite(s) and (c or s):
+            self.theta_ref.value[...] = math.atan2(s, c) % TWO_PI
+
+
+class MotionComputer(_MotionPorts):
+    """The L3 reference: a virtual oscillator whose frequency a policy steers.
+
+    ``θ_ref[k] = θ_L3[k]`` with
+    ``θ_L3[k+1] = wrap(θ_L3[k] + dt (ω_L3[k] + gain Σ_j a_aj sin(θ_j[k] − θ_L3[k])))``,
+    ``ω_L3[k] = clip(ω_L3[k−1] + ACTIONS[policy.act(...)], ±15)`` and
+    ``θ_L3[0] = 0``. The oscillator sits at the assisted participant's node
+    (coupled to its neighbours' own phases). Since the action of tick ``k``
+    first moves ``θ_L3[k+1]``, the output needs no input of the same tick.
+
+    Parameters
+    ----------
+    policy : L3Policy
+        Chooses the frequency increment every tick (e.g. a trained DQN or a
+        look-ahead planner).
+    n : int
+        Number of participants.
+    assisted : int
+        0-based index of the assisted participant.
+    gain : float
+        Coupling gain of the virtual oscillator (the group's).
+    omega_init : float
+        ``ω_L3[−1]``; the deliverable's choice is the mean natural frequency.
+    adjacency : "ring" or array_like
+        The group's graph; row ``assisted`` couples the oscillator.
+    """
+
+    _theta_feedthrough = False
+
+    def __init__(
+        self,
+        policy: L3Policy,
+        *,
+        n: int,
+        assisted: int,
+        gain: float,
+        omega_init: float,
+        adjacency: Any = "ring",
+        period: float | None = None,
+    ) -> None:
+        super().__init__(n, period)
+        if not callable(getattr(policy, "act", None)):
+            raise ValueError(f"MotionComputer: policy must have an act(context) method, got {policy!r}")
+        if not 0 <= assisted < n:
+            raise ValueError(f"MotionComputer: assisted must be a 0-based index in [0, {n - 1}], got {assisted!r}")
+        self.policy = policy
+        self.assisted = assisted
+        self.gain = finite_number(self, "gain", gain, low=0.0)
+        self.omega_init = finite_number(self, "omega_init", omega_init, low=-OMEGA_L3_LIMIT, high=OMEGA_L3_LIMIT)
+        adjacency = ring_adjacency(n) if isinstance(adjacency, str) and adjacency == "ring" else adjacency
+        self.coupling = finite_array(self, "adjacency", adjacency, shape=(n, n))[assisted]
+        self.others = np.array([j for j in range(n) if j != assisted])
+        self.add_state("theta_l3", 0.0)
+        self.add_state("omega_prev", self.omega_init)
+
+    def reset(self) -> None:
+        super().reset()
+        if hasattr(self.policy, "reset"):
+            self.policy.reset(self.omega_init)
+
+    def output(self, k: int) -> None:
+        self.theta_ref.value[...] = self.theta_l3
+
+    def update(self, k: int) -> None:
+        theta = self.theta.value
+        if not np.all(np.isfinite(theta)):
+            # no trustworthy context: keep the frequency, coast on the oscillator's own rate
+            self.theta_l3 = (self.theta_l3 + self.dt * self.omega_prev) % TWO_PI
+            return
+        obs = l3_observation(self.theta_l3, theta[self.others], self.omega_prev)
+        context = L3Context(k, obs, theta.copy(), self.theta_l3, float(self.lam.value), self.omega_prev)
+        action = self.policy.act(context)
+        omega = min(max(self.omega_prev + ACTIONS[action], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
+        pull = float(np.dot(self.coupling, np.sin(theta - self.theta_l3)))
+        self.theta_l3 = (self.theta_l3 + self.dt * (omega + self.gain * pull)) % TWO_PI
+        self.omega_prev = omega

@@ -1,0 +1,190 @@
+"""PoP of Social Connectedness (section 5.2): the L2 architecture in closed loop with a Kuramoto group."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from cogblocks.blocks import Blender, KuramotoGroup, OrderParameter, Probe, Select, Substitute
+from cogblocks.blocks.motion import MeanPhaseMotion
+from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.sim import Block, Diagram, Simulator
+
+__all__ = ["L2Sync", "MOTIONS", "pop_sync", "run_sync"]
+
+
+class L2Sync(Diagram):
+    """The L2 cognitive architecture of the PoP of Social Connectedness, as one block.
+
+    ``theta`` (all participants' phases) → the assisted participant's phase
+    θ_L0 and a motion computer's θ_ref → :class:`~cogblocks.blocks.Blender` →
+    θ_L2. The motion computer also sees the blender's λ.
+
+    Ports
+    -----
+    theta : input, shape (N,), rad, wrapped
+    theta_l2 : output, the avatar's phase
+    theta_l0, theta_ref, lam : outputs, for looking inside
+
+    Parameters
+    ----------
+    motion : Block
+        A motion computer (ports ``theta``, ``lam`` → ``theta_ref``), e.g.
+        :class:`~cogblocks.blocks.motion.MotionComputer`.
+    assisted : int
+        0-based index of the assisted participant.
+    blender : Blender, optional
+        The deliverable's blender by default.
+    """
+
+    def __init__(self, motion: Block, assisted: int, blender: Blender | None = None) -> None:
+        super().__init__()
+        select = self.add("select_l0", Select(assisted))
+        self.add("motion", motion)
+        blend = self.add("blender", blender if blender is not None else Blender())
+        self.connect(select.y, blend.theta_l0)
+        self.connect(motion.theta_ref, blend.theta_ref)
+        self.connect(blend.lam, motion.lam)
+        self.expose_input("theta", select.u, motion.theta)
+        self.expose_output("theta_l2", blend.theta_l2)
+        self.expose_output("theta_l0", select.y)
+        self.expose_output("theta_ref", motion.theta_ref)
+        self.expose_output("lam", blend.lam)
+
+
+def _mean_motion(group: SyncGroup) -> Block:
+    return MeanPhaseMotion(group.n, group.assisted)
+
+
+#: Motion computers available by name: each builds a fresh block for a group.
+MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {"mean": _mean_motion}
+
+
+def _group_of(group: int | SyncGroup) -> SyncGroup:
+    if isinstance(group, SyncGroup):
+        return group
+    if group not in TABLE2:
+        raise ValueError(f"pop_sync: group must be one of {sorted(TABLE2)} or a SyncGroup, got {group!r}")
+    return TABLE2[group]
+
+
+def pop_sync(
+    group: int | SyncGroup = 1,
+    l2: bool = True,
+    motion: str | Block = "mean",
+    blender: Blender | None = None,
+) -> Diagram:
+    """A ready closed-loop diagram of the PoP of Social Connectedness.
+
+    Blocks: ``group`` (:class:`KuramotoGroup`), and with ``l2=True`` the
+    :class:`L2Sync` block ``l2`` whose θ_L2 replaces the assisted participant's
+    phase in everyone's coupling and in what is measured (``seen``); ``order``
+    computes the order parameter, recorded by the probe ``r``.
+
+    Parameters
+    ----------
+    group : int or SyncGroup
+        Table 2's group number (1, 2, 3) or custom parameters.
+    l2 : bool
+        Include the L2 architecture.
+    motion : str or Block
+        A name from :data:`MOTIONS` or a motion computer block.
+    blender : Blender, optional
+        The deliverable's blender by default.
+    """
+    params = _group_of(group)
+    d = Diagram()
+    kuramoto = d.add(
+        "group", KuramotoGroup(params.omega, params.gain, assisted=params.assisted if l2 else None)
+    )
+    order = d.add("order", OrderParameter())
+    if l2:
+        if isinstance(motion, str):
+            if motion not in MOTIONS:
+                raise ValueError(f"pop_sync: motion must be one of {sorted(MOTIONS)} or a Block, got {motion!r}")
+            motion = MOTIONS[motion](params)
+        arch = d.add("l2", L2Sync(motion, params.assisted, blender))
+        seen = d.add("seen", Substitute(params.assisted))
+        d.connect(kuramoto.theta, arch.theta, seen.u)
+        d.connect(arch.theta_l2, kuramoto.theta_l2, seen.v)
+        d.connect(seen.y, order.theta)
+    else:
+        d.connect(kuramoto.theta, order.theta)
+    d.add("r", Probe())
+    d.connect(order.r, "r.u")
+    return d
+
+
+def _deviation(trace: Any) -> np.ndarray:
+    return np.abs(np.angle(np.exp(1j * (trace["theta_l2"] - trace["theta_l0"]))))
+
+
+def run_sync(group: int | SyncGroup = 1, motions: list[str] | None = None) -> dict[str, Any]:
+    """Table 3 for one group: the time-averaged order parameter without and with L2.
+
+    The average is over every sample ``t = 0 … T`` (T/dt + 1 ticks, r(0) = 1), as
+    in the deliverable.
+
+    Returns
+    -------
+    dict
+        ``{"group", "r_without", "results": [{"policy", "r_with", "change_pct",
+        "mean_dev_rad", "max_dev_rad"}, ...]}``; the deviations are
+        ``|wrap(θ_L2 − θ_L0)|`` over the run.
+    """
+    params = _group_of(group)
+    motions = list(MOTIONS) if motions is None else motions
+    n_steps = round(params.duration / 0.01) + 1
+    r_without = float(Simulator(pop_sync(params, l2=False)).run(n_steps=n_steps)["r"].mean())
+    results = []
+    for name in motions:
+        probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0"}
+        sim = Simulator(pop_sync(params, l2=True, motion=name), probes=probes)
+        trace = sim.run(n_steps=n_steps)
+        r_with = float(trace["r"].mean())
+        dev = _deviation(trace)
+        results.append(
+            {
+                "policy": name,
+                "r_with": r_with,
+                "change_pct": 100.0 * (r_with - r_without) / r_without,
+                "mean_dev_rad": float(dev.mean()),
+                "max_dev_rad": float(dev.max()),
+            }
+        )
+    number = group if isinstance(group, int) else params.name
+    return {"group": number, "r_without": r_without, "results": results}
+
+
+def plot_sync(group: int | SyncGroup, motion: str | Block, path: str) -> None:
+    """Draw the analogues of Figures 9 and 10: r with and without L2; θ_L0, θ_ref and θ_L2."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    params = _group_of(group)
+    n_steps = round(params.duration / 0.01) + 1
+    without = Simulator(pop_sync(params, l2=False)).run(n_steps=n_steps)
+    probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0", "theta_ref": "l2.theta_ref"}
+    with_l2 = Simulator(pop_sync(params, l2=True, motion=motion), probes=probes).run(n_steps=n_steps)
+    label = motion if isinstance(motion, str) else type(motion).__name__
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    ax1.plot(without.t, without["r"], label="without L2", color="0.4")
+    ax1.plot(with_l2.t, with_l2["r"], label=f"with L2 ({label})", color="tab:blue")
+    ax1.set_ylabel("order parameter r")
+    ax1.legend(loc="lower right")
+    ax1.set_title(f"{params.name}: Figure 9 and 10 analogues")
+    labels = {"theta_l0": ("θ_L0", "k-"), "theta_ref": ("θ_ref", "g--"), "theta_l2": ("θ_L2", "b-")}
+    for name, (text, style) in labels.items():
+        phase = with_l2[name].copy()
+        phase[1:][np.diff(phase) < -np.pi] = np.nan  # break the line where the phase wraps
+        ax2.plot(with_l2.t, phase, style, lw=1, label=text)
+    ax2.set_ylabel("phase [rad]")
+    ax2.set_xlabel("t [s]")
+    ax2.legend(loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,150 @@
+"""PoP of Social Connectedness: the ready diagram, its L2 block, Table 3."""
+
+import json
+
+import numpy as np
+import pytest
+
+from cogblocks.blocks import Blender, MotionComputer, Playback, Probe
+from cogblocks.blocks.motion import ACTIONS, MeanPhaseMotion, l3_observation
+from cogblocks.cli import main
+from cogblocks.data.groups import TABLE2
+from cogblocks.diagrams.sync import L2Sync, pop_sync, run_sync
+from cogblocks.sim import Diagram, DiagramError, Simulator
+
+
+def reference_closed_loop(group, n_steps, reference):
+    """Section 5.2.3.2 written out tick by tick, with θ_ref from ``reference(theta)``."""
+    omega, gain, a = np.array(group.omega), group.gain, group.assisted
+    n = group.n
+    adj = np.zeros((n, n))
+    for i in range(n):
+        adj[i, (i + 1) % n] = adj[i, (i - 1) % n] = 1
+    lam_max, lam_min, e_max = np.pi / 2, 0.3 * np.pi / 2, 0.3 * np.pi / 2
+    theta, lam, r = np.zeros(n), lam_max, []
+    for _ in range(n_steps):
+        ref = reference(theta)
+        x = np.angle(np.exp(1j * (ref - theta[a])))
+        l2 = np.mod(theta[a] + np.clip(x, -lam, lam), 2 * np.pi)
+        seen = theta.copy()
+        seen[a] = l2
+        r.append(abs(np.exp(1j * seen).mean()))
+        e = np.angle(np.exp(1j * (l2 - theta[a])))
+        lam_inf = max(0.0, 1 - abs(e / e_max)) * (lam_max - lam_min) + lam_min
+        lam = lam - 0.01 * (1.0 if lam <= lam_inf else 2.5) * (lam - lam_inf)
+        theta = np.mod(theta + 0.01 * (omega + gain * (adj * np.sin(seen[None, :] - seen[:, None])).sum(1)), 2 * np.pi)
+    return np.array(r)
+
+
+def test_pop_sync_with_mean_motion_matches_the_equations():
+    group = TABLE2[1]
+    others = [j for j in range(group.n) if j != group.assisted]
+
+    def circ_mean(theta):
+        return np.angle(np.exp(1j * theta[others]).mean())
+
+    expected = reference_closed_loop(group, 1001, circ_mean)
+    got = Simulator(pop_sync(1, motion="mean")).run(n_steps=1001)["r"]
+    np.testing.assert_allclose(got, expected, atol=1e-9)
+
+
+@pytest.mark.parametrize("group, r_without", [(1, 0.76), (2, 0.47), (3, 0.61)])
+def test_without_l2_reproduces_table3_with_table2_numbering(group, r_without):
+    n = round(TABLE2[group].duration / 0.01) + 1
+    r = Simulator(pop_sync(group, l2=False)).run(n_steps=n)["r"]
+    assert r[0] == 1.0
+    assert round(float(r.mean()), 2) == r_without
+
+
+def test_l2_is_one_swappable_block():
+    d = pop_sync(3, motion="mean")
+    assert isinstance(d["l2"], L2Sync)
+    assert {"l2.select_l0", "l2.motion", "l2.blender"} <= set(d.compile().blocks)
+    slow = Blender(kappa_minus=1.5)
+    d.replace("l2.blender", slow)
+    assert d["l2.blender"] is slow
+    Simulator(d).run(n_steps=10)
+    mermaid = d.to_mermaid()
+    assert 'subgraph l2["l2: L2Sync"]' in mermaid and "l2__blender" in mermaid
+
+
+def test_motion_computers_share_ports_and_checks():
+    group = TABLE2[2]
+    mean = MeanPhaseMotion(group.n, group.assisted)
+
+    class Hold:
+        def act(self, context):
+            return int(np.flatnonzero(ACTIONS == 0.0)[0])
+
+    l3 = MotionComputer(Hold(), n=group.n, assisted=group.assisted, gain=group.gain, omega_init=4.0)
+    assert set(mean.inputs) == set(l3.inputs) == {"theta", "lam"}
+    assert set(mean.outputs) == set(l3.outputs) == {"theta_ref"}
+    d = pop_sync(2, motion=mean)
+    d.replace("l2.motion", l3)
+    Simulator(d).run(n_steps=5)
+    with pytest.raises(ValueError, match="MotionComputer: policy must have an act"):
+        MotionComputer(object(), n=3, assisted=0, gain=1.0, omega_init=1.0)
+    omega_message = r"MotionComputer: omega_init must be a finite number in \[-15.0, 15.0\], got 20"
+    with pytest.raises(ValueError, match=omega_message):
+        MotionComputer(Hold(), n=3, assisted=0, gain=1.0, omega_init=20)
+    with pytest.raises(ValueError, match=r"MeanPhaseMotion: assisted must be a 0-based index in \[0, 2\], got 3"):
+        MeanPhaseMotion(3, 3)
+    with pytest.raises(ValueError, match="pop_sync: group must be one of"):
+        pop_sync(4)
+    with pytest.raises(ValueError, match="pop_sync: motion must be one of"):
+        pop_sync(1, motion="psychic")
+
+
+def test_virtual_oscillator_follows_its_equation():
+    """MotionComputer with a constant-action policy: θ_L3 against the formula, from a played phase vector."""
+    theta = np.mod(np.cumsum(np.full((200, 4), [0.03, 0.04, 0.05, 0.02]), axis=0), 2 * np.pi)
+
+    class Up:
+        def __init__(self):
+            self.contexts = []
+
+        def act(self, context):
+            self.contexts.append(context)
+            return len(ACTIONS) - 1  # +0.5 rad/s each tick
+
+    policy = Up()
+    d = Diagram()
+    src = d.add("src", Playback(theta, unit="rad", wrapped=True))
+    mc = d.add("mc", MotionComputer(policy, n=4, assisted=1, gain=0.7, omega_init=2.0))
+    d.connect(src.y, mc.theta)
+    d.add("p", Probe())
+    d.connect(mc.theta_ref, "p.u")
+    got = Simulator(d).run(n_steps=200)["p"]
+    th, om = 0.0, 2.0
+    for k in range(200):
+        assert got[k] == pytest.approx(th, abs=1e-12)
+        ctx = policy.contexts[k]
+        np.testing.assert_allclose(ctx.obs, l3_observation(th, theta[k, [0, 2, 3]], om), atol=1e-12)
+        assert ctx.lam == pytest.approx(np.pi)  # unconnected λ reads its default
+        om = min(om + 0.5, 15.0)
+        th = np.mod(th + 0.01 * (om + 0.7 * (np.sin(theta[k, 0] - th) + np.sin(theta[k, 2] - th))), 2 * np.pi)
+
+
+def test_run_sync_mean_policy_improves_every_group():
+    for group in (1, 3):
+        result = run_sync(group, ["mean"])
+        row = result["results"][0]
+        assert row["r_with"] > result["r_without"]
+        assert 0 < row["mean_dev_rad"] <= row["max_dev_rad"] <= np.pi / 2 + 1e-9  # bounded by λ_max
+
+
+def test_cli_sync_json(capsys, tmp_path):
+    plot = tmp_path / "sync.png"
+    assert main(["run", "sync", "--group", "1", "--policy", "mean", "--json", "--plot", str(plot)]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["group"] == 1 and round(result["r_without"], 2) == 0.76
+    (row,) = result["results"]
+    assert set(row) == {"policy", "r_with", "change_pct", "mean_dev_rad", "max_dev_rad"}
+    assert row["change_pct"] == pytest.approx(100 * (row["r_with"] / result["r_without"] - 1))
+    assert plot.stat().st_size > 10_000
+
+
+def test_blender_unstable_rate_refused_in_ready_diagram():
+    d = pop_sync(1, blender=Blender(kappa_minus=250.0))
+    with pytest.raises(DiagramError, match="dt \\* kappa_minus = 2.5"):
+        d.compile()
