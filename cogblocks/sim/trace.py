@@ -50,6 +50,21 @@ class Trace(Mapping[str, np.ndarray]):
         span = f"{self.t[0]:g}..{self.t[-1]:g} s" if len(self.t) else "empty"
         return f"<Trace {len(self.t)} samples, {span}: {', '.join(self._signals)}>"
 
+    def plot(self, *names: str, ax: Any = None) -> Any:
+        """Plot signals against time with matplotlib (all of them by default); returns the axes."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots()
+        for name in names or tuple(self._signals):
+            arr = self[name]
+            lines = ax.plot(self.t, arr.reshape(len(arr), -1))
+            for i, line in enumerate(lines):
+                line.set_label(name if len(lines) == 1 else f"{name}[{i}]")
+        ax.set_xlabel("t [s]")
+        ax.legend(loc="best")
+        return ax
+
     def to_pandas(self) -> Any:
         """A ``pandas.DataFrame`` indexed by time; vector signals become ``name[i]`` columns."""
         import pandas as pd

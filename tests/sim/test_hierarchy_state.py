@@ -223,6 +223,16 @@ def test_trace_to_pandas_and_units():
         Trace(np.zeros(3), {"a": np.zeros(2)})
 
 
+def test_trace_plot_labels_every_line():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    trace = Trace(np.arange(3) * 0.01, {"a": np.zeros(3), "v": np.ones((3, 2))})
+    ax = trace.plot()
+    assert [line.get_label() for line in ax.get_lines()] == ["a", "v[0]", "v[1]"]
+    np.testing.assert_array_equal(ax.get_lines()[2].get_ydata(), np.ones(3))
+
+
 def test_mermaid_and_dot_show_blocks_wires_and_subgraphs():
     d = _plant_loop(True)
     mermaid = d.to_mermaid()
