@@ -19,7 +19,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 # benchmark modules, in the order they run; each has run(quick) -> iterator of dicts
-MODULES = ["benchmarks.engine", "benchmarks.sync"]
+MODULES = ["benchmarks.engine", "benchmarks.sync", "benchmarks.phase3d_latency"]
 
 
 def main(argv: list[str] | None = None) -> int:

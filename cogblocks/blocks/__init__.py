@@ -20,8 +20,17 @@ from cogblocks.blocks.core import (
 )
 from cogblocks.blocks.group import KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
 from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
+from cogblocks.blocks.phase3d import (
+    BackwardDifference,
+    PeriodEstimator,
+    PhaseComputer,
+    PhaseEstimator3D,
+    PositionComputer,
+    ReferenceCustomizer,
+)
 
 __all__ = [
+    "BackwardDifference",
     "Blender",
     "Constant",
     "Demux",
@@ -36,8 +45,13 @@ __all__ = [
     "MotionComputer",
     "Mux",
     "OrderParameter",
+    "PeriodEstimator",
+    "PhaseComputer",
+    "PhaseEstimator3D",
     "Playback",
+    "PositionComputer",
     "Probe",
+    "ReferenceCustomizer",
     "Saturation",
     "Select",
     "Substitute",

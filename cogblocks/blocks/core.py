@@ -48,7 +48,7 @@ class Constant(Block):
     Parameters
     ----------
     value : array_like
-        The value; finite numbers only.
+        The value: finite numbers (a float64 signal), or bools or ints (kept as they are).
     unit : str
         Unit of the output.
     wrapped : bool
@@ -57,8 +57,11 @@ class Constant(Block):
 
     def __init__(self, value: Any, *, unit: str = "1", wrapped: bool = False, period: float | None = None) -> None:
         super().__init__(period=period)
-        arr = finite_array(self, "value", value)
-        self.add_output("y", shape=arr.shape, unit=unit, wrapped=wrapped, initial=arr)
+        given = np.asarray(value)
+        # flags and counters stay what they are; everything else is a float signal
+        dtype = given.dtype if given.dtype.kind in "bi" else np.float64
+        arr = given if dtype != np.float64 else finite_array(self, "value", value)
+        self.add_output("y", shape=arr.shape, dtype=dtype, unit=unit, wrapped=wrapped, initial=arr)
 
 
 class Gain(Block):

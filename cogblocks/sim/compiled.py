@@ -424,7 +424,9 @@ class CompiledDiagram:
 
     # -- looking things up ---------------------------------------------------
     def output_port(self, path: str) -> Output:
-        """The leaf output behind ``"block.port"`` (dotted through sub-diagrams)."""
+        """The leaf output behind ``"block.port"`` (dotted through sub-diagrams), or a top-level output's name."""
+        if path in self._ext_outputs:
+            return self._ext_outputs[path]
         block_path, _, port = path.rpartition(".")
         try:
             block = self.diagram[block_path] if block_path else None

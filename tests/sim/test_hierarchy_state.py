@@ -282,3 +282,23 @@ def test_progress_bar_shows_in_a_terminal_without_ci():
     os.close(master)
     assert proc.returncode == 0
     assert b"simulating" in out
+
+
+def test_top_level_outputs_can_be_probed_by_name():
+    d = Diagram()
+    g = d.add("g", Gain(2.0))
+    d.expose_input("x", g.u, spec=Signal())
+    d.expose_output("y", g.y)
+    trace = Simulator(d, probes=["y"]).run(n_steps=2, inputs={"x": 3.0})
+    assert trace["y"].tolist() == [6.0, 6.0]
+
+
+def test_constant_keeps_flags_and_counters():
+    from cogblocks.blocks import Constant
+
+    d = Diagram()
+    d.add("flag", Constant(True))
+    d.add("count", Constant(3))
+    trace = Simulator(d, probes=["flag.y", "count.y"]).run(n_steps=2)
+    assert trace["flag.y"].dtype == bool and trace["flag.y"].tolist() == [True, True]
+    assert trace["count.y"].dtype.kind == "i"
