@@ -18,8 +18,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+# name prefix of each module's results, where it differs from the module name
+_PREFIXES = {"benchmarks.phase3d_latency": "phase3d", "benchmarks.l1_delay": "l1"}
+
 # benchmark modules, in the order they run; each has run(quick) -> iterator of dicts
-MODULES = ["benchmarks.engine", "benchmarks.sync", "benchmarks.phase3d_latency"]
+MODULES = ["benchmarks.engine", "benchmarks.sync", "benchmarks.phase3d_latency", "benchmarks.l1_delay"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -29,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     ran = 0
     for module_name in MODULES:
-        prefix = module_name.split(".")[-1]
+        prefix = _PREFIXES.get(module_name, module_name.split(".")[-1])
         if args.only and not (args.only.startswith(prefix) or prefix.startswith(args.only)):
             continue
         module = importlib.import_module(module_name)

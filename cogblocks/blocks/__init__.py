@@ -18,7 +18,9 @@ from cogblocks.blocks.core import (
     Sum,
     UnitDelay,
 )
+from cogblocks.blocks.estimation import KalmanEstimator, fit_noise
 from cogblocks.blocks.group import KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
+from cogblocks.blocks.l1 import L1, KinematicPredictor
 from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
 from cogblocks.blocks.phase3d import (
     BackwardDifference,
@@ -38,8 +40,11 @@ __all__ = [
     "Function",
     "Gain",
     "Integrator",
+    "KalmanEstimator",
+    "KinematicPredictor",
     "KuramotoGroup",
     "KuramotoOscillator",
+    "L1",
     "LowPass",
     "MeanPhaseMotion",
     "MotionComputer",
@@ -57,5 +62,6 @@ __all__ = [
     "Substitute",
     "Sum",
     "UnitDelay",
+    "fit_noise",
     "ring_adjacency",
 ]

@@ -221,11 +221,7 @@ class Block:
     def reset(self) -> None:
         """Restore the declared state and the outputs to their initial values."""
         for name, init in self._state_init.items():
-            current = self.__dict__.get(name)
-            if isinstance(current, np.random.Generator):
-                current.bit_generator.state = copy.deepcopy(init)
-            else:
-                object.__setattr__(self, name, copy.deepcopy(init))
+            self._restore(name, init)
         for port in self._outputs.values():
             if port.initial is not None:
                 port.value[...] = port.initial
@@ -251,13 +247,24 @@ class Block:
                 f"{sorted(saved_outputs)}, the block has {sorted(self._state_init)} and {sorted(self._outputs)}"
             )
         for name, value in saved_state.items():
-            current = self.__dict__.get(name)
-            if isinstance(current, np.random.Generator):
-                current.bit_generator.state = copy.deepcopy(value)
-            else:
-                object.__setattr__(self, name, copy.deepcopy(value))
+            self._restore(name, value)
         for name, value in saved_outputs.items():
             self._outputs[name].value[...] = value
+
+    def _restore(self, name: str, value: Any) -> None:
+        """Set a declared state, in place where possible so outside references to it stay valid."""
+        current = self.__dict__.get(name)
+        if isinstance(current, np.random.Generator):
+            current.bit_generator.state = copy.deepcopy(value)
+        elif (
+            isinstance(current, np.ndarray)
+            and isinstance(value, np.ndarray)
+            and current.shape == value.shape
+            and current.dtype == value.dtype
+        ):
+            current[...] = value
+        else:
+            object.__setattr__(self, name, copy.deepcopy(value))
 
     # -- helpers for subclasses ----------------------------------------------
     def _fail(self, message: str) -> DiagramError:

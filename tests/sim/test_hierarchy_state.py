@@ -302,3 +302,29 @@ def test_constant_keeps_flags_and_counters():
     trace = Simulator(d, probes=["flag.y", "count.y"]).run(n_steps=2)
     assert trace["flag.y"].dtype == bool and trace["flag.y"].tolist() == [True, True]
     assert trace["count.y"].dtype.kind == "i"
+
+
+def test_reset_and_load_write_array_state_in_place():
+    class Holder(Block):
+        def __init__(self):
+            super().__init__()
+            self.add_output("y")
+            self.add_state("x", np.zeros(2))
+
+        def output(self, k):
+            self.y.value[...] = self.x[0]
+
+        def update(self, k):
+            self.x += 1.0
+
+    d = Diagram()
+    h = d.add("h", Holder())
+    sim = Simulator(d)
+    alias = h.x
+    sim.run(n_steps=3)
+    snap = sim.state_dict()
+    sim.run(n_steps=2)
+    sim.load_state_dict(snap)
+    assert h.x is alias and alias.tolist() == [3.0, 3.0]
+    sim.reset()
+    assert h.x is alias and alias.tolist() == [0.0, 0.0]
