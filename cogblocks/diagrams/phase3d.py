@@ -1,4 +1,9 @@
-"""3D phase estimation (section 6): accuracy of the online estimator and the Figure 14 analogue.
+"""3D phase estimation (section 6): the phase chain, the estimator's accuracy, the Figure 14 analogue.
+
+:func:`phase_chain` runs the synchronisation architecture on 3D hand motion: the assisted
+person's positions → :class:`~cogblocks.blocks.phase3d.PhaseEstimator3D` → the L2 block of the
+Social Connectedness PoP → :class:`~cogblocks.blocks.phase3d.PositionComputer` → the avatar's 3D
+positions, with the other participants' phases from a Kuramoto group that sees the avatar.
 
 The online estimator (:class:`~cogblocks.blocks.phase3d.PhaseEstimator3D`) runs on synthetic hand
 trajectories (:func:`~cogblocks.data.motion3d.generate_motion3d`) whose phase is known, and is
@@ -14,13 +19,113 @@ from typing import Any
 
 import numpy as np
 
+from cogblocks.blocks import Blender, KuramotoGroup, OrderParameter, Playback, Probe, Substitute
 from cogblocks.blocks.angles import wrap_pi
-from cogblocks.blocks.phase3d import PhaseEstimator3D, offline_phase_pca_hilbert
+from cogblocks.blocks.phase3d import PhaseEstimator3D, PositionComputer, offline_phase_pca_hilbert
+from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.data.motion3d import Motion3D, generate_motion3d
-from cogblocks.sim import Simulator
+from cogblocks.diagrams.sync import MOTIONS, L2Sync
+from cogblocks.sim import Block, Diagram, Simulator
 from cogblocks.sim.params import finite_number, positive_int
 
-__all__ = ["phase3d_accuracy", "plot_phase3d", "run_phase_estimator"]
+__all__ = ["phase3d_accuracy", "phase_chain", "plot_phase3d", "run_phase_chain", "run_phase_estimator"]
+
+
+def phase_chain(
+    motion: Motion3D,
+    group: SyncGroup | int = 3,
+    motion_computer: str | Block = "mean",
+    blender: Blender | None = None,
+    avatar_noise_mm: float = 0.0,
+    seed: int = 0,
+) -> Diagram:
+    """The synchronisation architecture on 3D motion, as one diagram.
+
+    Blocks: ``human`` plays the assisted person's tracked positions; ``estimator``
+    (:class:`PhaseEstimator3D` on the motion's reference) gives θ_L0; ``group`` is a Kuramoto
+    group for everyone (its assisted participant's own phase is replaced by the estimate in
+    ``theta``); ``l2`` (:class:`L2Sync`) blends θ_L0 with the motion computer's reference;
+    ``avatar`` (:class:`PositionComputer`) turns θ_L2 back into 3D positions on the reference
+    (the avatar moves in the reference's frame); ``order`` measures the group as it sees the
+    avatar. Probes: ``r``, ``avatar_p``.
+
+    Parameters
+    ----------
+    motion : Motion3D
+        The assisted person's trajectory and the reference primitive.
+    group : SyncGroup or int
+        The other participants (Table 2's group number by default 3, whose frequencies are those
+        of arm motion at ~0.5 Hz).
+    motion_computer : str or Block
+        A name from :data:`cogblocks.diagrams.sync.MOTIONS` or a motion computer block.
+    blender : Blender, optional
+        The deliverable's blender by default.
+    avatar_noise_mm : float
+        White noise added to the avatar's positions (section 6.2.2), in mm.
+    seed : int
+        Seed of that noise.
+
+    Notes
+    -----
+    Until the estimator has seen its first period (``estimator.valid`` is False) θ_L0 is held at
+    0, so the L2 output is meaningful only after it.
+    """
+    params = TABLE2[group] if isinstance(group, int) else group
+    a = params.assisted
+    d = Diagram()
+    human = d.add("human", Playback(motion.position, unit="mm"))
+    estimator = d.add("estimator", PhaseEstimator3D(motion.reference))
+    d.connect(human.y, estimator.p)
+    kuramoto = d.add("group", KuramotoGroup(params.omega, params.gain, assisted=a))
+    theta = d.add("theta", Substitute(a))
+    d.connect(kuramoto.theta, theta.u)
+    d.connect(estimator.theta, theta.v)
+    mc = MOTIONS[motion_computer](params) if isinstance(motion_computer, str) else motion_computer
+    l2 = d.add("l2", L2Sync(mc, a, blender))
+    d.connect(theta.y, l2.theta)
+    seen = d.add("seen", Substitute(a))
+    d.connect(theta.y, seen.u)
+    d.connect(l2.theta_l2, kuramoto.theta_l2, seen.v)
+    order = d.add("order", OrderParameter())
+    d.connect(seen.y, order.theta)
+    avatar = d.add("avatar", PositionComputer(motion.reference, noise_std=avatar_noise_mm, seed=seed))
+    d.connect(l2.theta_l2, avatar.theta)
+    d.add("r", Probe())
+    d.connect(order.r, "r.u")
+    d.add("avatar_p", Probe())
+    d.connect(avatar.p, "avatar_p.u")
+    return d
+
+
+def run_phase_chain(seed: int = 0, duration: float = 30.0, motion_computer: str = "mean") -> dict[str, Any]:
+    """Run :func:`phase_chain` on one synthetic trajectory; report the group's synchrony and the avatar.
+
+    Returns
+    -------
+    dict
+        ``r_mean`` (order parameter with the avatar, once the estimate is valid), ``valid_from_s``,
+        ``mean_dev_rad`` / ``max_dev_rad`` (|θ_L2 − θ_L0| once valid) and
+        ``avatar_path_mm`` (length of the avatar's path).
+    """
+    motion = generate_motion3d(seed, duration=duration)
+    sim = Simulator(
+        phase_chain(motion, motion_computer=motion_computer),
+        dt=motion.dt,
+        probes={"valid": "estimator.valid", "theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0"},
+    )
+    trace = sim.run(n_steps=len(motion.t))
+    valid = trace["valid"]
+    if not valid.any():
+        raise ValueError(f"the estimator found no complete period in {duration} s of motion")
+    dev = np.abs(wrap_pi(trace["theta_l2"][valid] - trace["theta_l0"][valid]))
+    path = np.linalg.norm(np.diff(trace["avatar_p"], axis=0), axis=1).sum()
+    return {
+        "r_mean": float(trace["r"][valid].mean()),
+        "valid_from_s": float(trace.t[np.argmax(valid)]),
+        "mean_dev_rad": float(dev.mean()),
+        "max_dev_rad": float(dev.max()),
+        "avatar_path_mm": float(path),
+    }
 
 
 def run_phase_estimator(motion: Motion3D, **estimator_kwargs: Any) -> dict[str, np.ndarray]:
