@@ -9,7 +9,6 @@ Euler: fast decrease (κ⁻), slow recovery (κ⁺).
 from __future__ import annotations
 
 import math
-import warnings
 
 from cogblocks.blocks.angles import TWO_PI
 from cogblocks.sim import Block, Signal
@@ -67,8 +66,9 @@ class Blender(Block):
     Notes
     -----
     The step must keep the forward-Euler λ dynamics stable: ``dt·κ < 2`` for
-    both rates, or compiling fails; ``dt·κ >= 1`` makes λ overshoot λ∞ and only
-    warns. Defaults are the deliverable's values (:data:`DELIVERABLE_BLENDER`).
+    both rates and a stable equilibrium at the limit λ*
+    (:func:`cogblocks.analysis.stability.check_blender`), or compiling fails;
+    ``dt·κ > 1`` makes λ overshoot λ∞ and only warns. Defaults are the deliverable's values (:data:`DELIVERABLE_BLENDER`).
 
     Bad data policy: a non-finite ``theta_l0`` holds the last outputs and does
     not advance λ; a non-finite ``theta_ref`` gives no alteration
@@ -100,23 +100,18 @@ class Blender(Block):
         self.add_output("theta_l2", PHASE)
         self.add_output("lam", Signal(unit="rad"), initial=self.lam_max)
         self.add_state("lam_now", self.lam_max)
-        self.add_state("lam_next", self.lam_max)
+        self.lam_next = self.lam_max  # scratch: λ of the next tick, computed in output(), committed in update()
 
     def setup(self) -> None:
-        for name in ("kappa_plus", "kappa_minus"):
-            step = self.dt * getattr(self, name)
-            if step >= 2.0:
-                raise self._fail(
-                    f"dt * {name} = {step:g} makes the forward-Euler λ dynamics unstable; "
-                    f"it must be below 2 (below 1 for a monotone λ): lower {name} or the block's period"
-                )
-            if step >= 1.0:
-                warnings.warn(
-                    f"{self.name}: dt * {name} = {step:g} >= 1: λ overshoots λ∞ at each step "
-                    "(stable but not monotone); keep it below 1",
-                    RuntimeWarning,
-                    stacklevel=2,
-                )
+        # the λ dynamics must be stable for this step, both along the linear pieces and at the
+        # equilibrium where the blender sits at its limit (see cogblocks.analysis.stability)
+        from cogblocks.analysis.stability import check_blender
+
+        try:
+            check_blender(self, self.dt)
+        except ValueError as exc:
+            raise self._fail(str(exc).removeprefix("Blender: ")) from None
+        self.lam_next = self.lam_now
 
     def saturate(self, x: float, lam: float) -> float:
         """``sat_λ(x)``: hard clip to [−λ, λ], or its smooth version."""

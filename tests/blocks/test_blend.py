@@ -115,7 +115,14 @@ def test_parameter_errors(kwargs, message):
 
 
 def test_unstable_euler_step_is_refused_and_non_monotone_warns():
-    with pytest.raises(DiagramError, match=r"bl: dt \* kappa_minus = 2.5 makes the forward-Euler λ dynamics unstable"):
+    with pytest.raises(DiagramError, match=r"bl: dt \* kappa_minus = 2.5 >= 2 makes the forward-Euler λ dynamics"):
         run_blender(np.zeros(3), np.zeros(3), dt=1.0, kappa_plus=0.5)
-    with pytest.warns(RuntimeWarning, match=r"dt \* kappa_minus = 1.25 >= 1"):
-        run_blender(np.zeros(3), np.zeros(3), dt=0.5)
+    with pytest.warns(RuntimeWarning, match=r"dt \* kappa_minus = 1.25 > 1"):
+        run_blender(np.zeros(3), np.zeros(3), dt=0.5, e_max=3.0, lam_min=0.5, lam_max=0.6)
+
+
+def test_unstable_equilibrium_at_the_limit_is_refused():
+    # dt κ < 2 on both pieces, but λ∞ is so steep at λ* that λ oscillates for ever there
+    params = dict(lam_min=0.1, lam_max=1.4, e_max=0.2, kappa_plus=3.0, kappa_minus=5.0)
+    with pytest.raises(DiagramError, match=r"bl: the equilibrium at the limit λ\* = .* is unstable"):
+        run_blender(np.zeros(3), np.zeros(3), dt=0.1, **params)

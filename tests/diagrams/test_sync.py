@@ -146,5 +146,5 @@ def test_cli_sync_json(capsys, tmp_path):
 
 def test_blender_unstable_rate_refused_in_ready_diagram():
     d = pop_sync(1, blender=Blender(kappa_minus=250.0))
-    with pytest.raises(DiagramError, match="dt \\* kappa_minus = 2.5"):
+    with pytest.raises(DiagramError, match="dt \\* kappa_minus = 2.5 >= 2"):
         d.compile()
