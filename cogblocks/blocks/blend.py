@@ -68,7 +68,8 @@ class Blender(Block):
     The step must keep the forward-Euler λ dynamics stable: ``dt·κ < 2`` for
     both rates and a stable equilibrium at the limit λ*
     (:func:`cogblocks.analysis.stability.check_blender`), or compiling fails;
-    ``dt·κ > 1`` makes λ overshoot λ∞ and only warns. Defaults are the deliverable's values (:data:`DELIVERABLE_BLENDER`).
+    ``dt·κ > 1`` makes λ overshoot λ∞ and only warns. Defaults are the
+    deliverable's values (:data:`DELIVERABLE_BLENDER`).
 
     Bad data policy: a non-finite ``theta_l0`` holds the last outputs and does
     not advance λ; a non-finite ``theta_ref`` gives no alteration
