@@ -19,10 +19,20 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 # name prefix of each module's results, where it differs from the module name
-_PREFIXES = {"benchmarks.phase3d_latency": "phase3d", "benchmarks.l1_delay": "l1"}
+_PREFIXES = {
+    "benchmarks.phase3d_latency": "phase3d",
+    "benchmarks.l1_delay": "l1",
+    "benchmarks.phase1d_accuracy": "phase1d",
+}
 
 # benchmark modules, in the order they run; each has run(quick) -> iterator of dicts
-MODULES = ["benchmarks.engine", "benchmarks.sync", "benchmarks.phase3d_latency", "benchmarks.l1_delay"]
+MODULES = [
+    "benchmarks.engine",
+    "benchmarks.sync",
+    "benchmarks.phase3d_latency",
+    "benchmarks.l1_delay",
+    "benchmarks.phase1d_accuracy",
+]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -22,6 +22,7 @@ from cogblocks.blocks.estimation import KalmanEstimator, fit_noise
 from cogblocks.blocks.group import KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
 from cogblocks.blocks.l1 import L1, KinematicPredictor
 from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
+from cogblocks.blocks.phase import Algorithm1Phase, PhaseEstimator, hilbert_phase
 from cogblocks.blocks.phase3d import (
     BackwardDifference,
     PeriodEstimator,
@@ -32,6 +33,7 @@ from cogblocks.blocks.phase3d import (
 )
 
 __all__ = [
+    "Algorithm1Phase",
     "BackwardDifference",
     "Blender",
     "Constant",
@@ -52,6 +54,7 @@ __all__ = [
     "OrderParameter",
     "PeriodEstimator",
     "PhaseComputer",
+    "PhaseEstimator",
     "PhaseEstimator3D",
     "Playback",
     "PositionComputer",
@@ -63,5 +66,6 @@ __all__ = [
     "Sum",
     "UnitDelay",
     "fit_noise",
+    "hilbert_phase",
     "ring_adjacency",
 ]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from cogblocks.blocks.angles import TWO_PI
+from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of
 
@@ -141,7 +141,7 @@ class Blender(Block):
         lam = self.lam_now
         theta_ref = float(self.theta_ref.value)
         shift = self.saturate(_wrap_pi(theta_ref - theta_l0), lam) if math.isfinite(theta_ref) else 0.0
-        theta_l2 = (theta_l0 + shift) % TWO_PI
+        theta_l2 = wrap_angle(theta_l0 + shift)
         self.theta_l2.value[...] = theta_l2
         self.lam.value[...] = lam
         # eq. (6), forward Euler, with e from this tick's θ_L2 and θ_L0

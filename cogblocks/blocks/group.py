@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.blocks.angles import TWO_PI
+from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_array, finite_number, positive_int
 
@@ -114,6 +114,7 @@ class KuramotoGroup(Block):
         rate *= self.dt
         self.phase += rate
         np.mod(self.phase, TWO_PI, out=self.phase)
+        self.phase[self.phase >= TWO_PI] = 0.0  # np.mod gives 2π for tiny negative values
 
 
 class KuramotoOscillator(Block):
@@ -151,7 +152,7 @@ class KuramotoOscillator(Block):
         coupling = 0.0
         for port in self._neighbours:
             coupling += math.sin(float(port.value) - phase)
-        self.phase = (phase + self.dt * (self.omega + self.gain * coupling)) % TWO_PI
+        self.phase = wrap_angle(phase + self.dt * (self.omega + self.gain * coupling))
 
 
 class OrderParameter(Block):

@@ -21,7 +21,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from cogblocks.blocks.angles import TWO_PI
+from cogblocks.blocks.angles import wrap_angle
 from cogblocks.blocks.group import ring_adjacency
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_array, finite_number
@@ -139,7 +139,7 @@ class MeanPhaseMotion(_MotionPorts):
         phases = self.theta.value[self.others]
         c, s = np.cos(phases).sum(), np.sin(phases).sum()
         if math.isfinite(c) and math.isfinite(s) and (c or s):
-            self.theta_ref.value[...] = math.atan2(s, c) % TWO_PI
+            self.theta_ref.value[...] = wrap_angle(math.atan2(s, c))
 
 
 class MotionComputer(_MotionPorts):
@@ -209,12 +209,12 @@ class MotionComputer(_MotionPorts):
         theta = self.theta.value
         if not np.all(np.isfinite(theta)):
             # no trustworthy context: keep the frequency, coast on the oscillator's own rate
-            self.theta_l3 = (self.theta_l3 + self.dt * self.omega_prev) % TWO_PI
+            self.theta_l3 = wrap_angle(self.theta_l3 + self.dt * self.omega_prev)
             return
         obs = l3_observation(self.theta_l3, theta[self.others], self.omega_prev)
         context = L3Context(k, obs, theta.copy(), self.theta_l3, float(self.lam.value), self.omega_prev)
         action = self.policy.act(context)
         omega = min(max(self.omega_prev + ACTIONS[action], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
         pull = float(np.dot(self.coupling, np.sin(theta - self.theta_l3)))
-        self.theta_l3 = (self.theta_l3 + self.dt * (omega + self.gain * pull)) % TWO_PI
+        self.theta_l3 = wrap_angle(self.theta_l3 + self.dt * (omega + self.gain * pull))
         self.omega_prev = omega

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import scipy.signal
 
-from cogblocks.blocks.angles import TWO_PI
+from cogblocks.blocks.angles import TWO_PI, wrap_2pi
 from cogblocks.sim import ANY, Block, Diagram, Signal
 from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
 
@@ -775,7 +775,7 @@ def offline_phase_pca_hilbert(positions: np.ndarray) -> np.ndarray:
     cycle = _first_cycle(phase, owner)
     k = np.arange(round(cycle))
     offset = np.angle(np.exp(1j * (TWO_PI * k / cycle - phase[k])).mean())
-    return np.mod(phase + offset, TWO_PI)
+    return wrap_2pi(phase + offset)
 
 
 def _first_cycle(phase: np.ndarray, owner: str) -> float:

@@ -26,8 +26,8 @@ def finite_number(
     high_open: bool = False,
 ) -> float:
     """Return ``value`` as a float, or raise ``ValueError`` if it is not finite or out of range."""
-    lo = "(" if low_open else "["
-    hi = ")" if high_open else "]"
+    lo = "(" if low_open or low is None else "["
+    hi = ")" if high_open or high is None else "]"
     allowed = f"a finite number in {lo}{'-inf' if low is None else low}, {'inf' if high is None else high}{hi}"
     try:
         x = float(value)

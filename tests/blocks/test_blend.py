@@ -100,10 +100,10 @@ def test_bad_input_policies():
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        (dict(lam_min=0.0), r"lam_min must be a finite number in \(0.0, inf\], got 0.0"),
-        (dict(lam_min=1.0, lam_max=0.5), r"lam_max must be a finite number in \[1.0, inf\], got 0.5"),
-        (dict(e_max=-1.0), r"e_max must be a finite number in \(0.0, inf\], got -1.0"),
-        (dict(kappa_plus=0.0), r"kappa_plus must be a finite number in \(0.0, inf\], got 0.0"),
+        (dict(lam_min=0.0), r"lam_min must be a finite number in \(0.0, inf\), got 0.0"),
+        (dict(lam_min=1.0, lam_max=0.5), r"lam_max must be a finite number in \[1.0, inf\), got 0.5"),
+        (dict(e_max=-1.0), r"e_max must be a finite number in \(0.0, inf\), got -1.0"),
+        (dict(kappa_plus=0.0), r"kappa_plus must be a finite number in \(0.0, inf\), got 0.0"),
         (dict(kappa_minus=float("nan")), "kappa_minus must be a finite number"),
         (dict(saturation="soft"), r"saturation must be one of \['hard', 'smooth'\], got 'soft'"),
         (dict(psi="box"), r"psi must be one of \['triangular', 'bump'\], got 'box'"),

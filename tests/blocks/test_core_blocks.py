@@ -84,7 +84,7 @@ def test_unit_delay_and_integrator_against_numpy():
 def test_saturation():
     u = np.linspace(-3, 3, 13)
     np.testing.assert_array_equal(run_chain(u, Saturation(-1.0, 2.0)), np.clip(u, -1.0, 2.0))
-    with pytest.raises(ValueError, match=r"Saturation: upper must be a finite number in \[2.0, inf\], got 1.0"):
+    with pytest.raises(ValueError, match=r"Saturation: upper must be a finite number in \[2.0, inf\), got 1.0"):
         Saturation(2.0, 1.0)
 
 

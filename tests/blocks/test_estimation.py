@@ -242,7 +242,7 @@ def test_state_dict_round_trip_continues_identically():
     ("options", "message"),
     [
         ({"model": "kalman"}, r"KalmanEstimator: model must be one of \['cv', 'ca'\], got 'kalman'"),
-        ({"process_noise": -1.0}, r"KalmanEstimator: process_noise must be a finite number in \(0.0, inf\], got -1.0"),
+        ({"process_noise": -1.0}, r"KalmanEstimator: process_noise must be a finite number in \(0.0, inf\), got -1.0"),
         ({"measurement_noise": 0}, r"KalmanEstimator: measurement_noise must be .*, got 0"),
         ({"measurement_noise": float("nan")}, r"measurement_noise must be a finite number .*, got nan"),
         ({"gate": 1.0}, r"KalmanEstimator: gate must be a finite number in \(0.0, 1.0\), got 1.0"),
@@ -309,7 +309,7 @@ def test_fit_noise_feeds_the_estimator():
     ("args", "options", "message"),
     [
         ((np.zeros(100), 0.01), {"model": "x"}, r"fit_noise: model must be one of \['cv', 'ca'\], got 'x'"),
-        ((np.zeros(100), 0.0), {}, r"fit_noise: dt must be a finite number in \(0.0, inf\], got 0.0"),
+        ((np.zeros(100), 0.0), {}, r"fit_noise: dt must be a finite number in \(0.0, inf\), got 0.0"),
         ((np.zeros(100), 0.01), {"max_lag": 0}, r"fit_noise: max_lag must be an integer >= 1, got 0"),
         ((np.zeros(30), 0.01), {}, r"fit_noise: positions must hold at least 52 samples for max_lag=16, got 30"),
         ((np.zeros((100, 2, 2)), 0.01), {}, r"fit_noise: positions must have shape \(T,\) or \(T, n\)"),

@@ -109,7 +109,7 @@ def test_order_parameter_ignores_non_finite_phases():
     [
         (dict(omega=[1.0], gain=1.0), "omega must hold at least 2 frequencies, got 1"),
         (dict(omega=[1.0, np.inf], gain=1.0), "omega must contain only finite numbers"),
-        (dict(omega=[1.0, 2.0], gain=-1.0), r"gain must be a finite number in \[0.0, inf\], got -1.0"),
+        (dict(omega=[1.0, 2.0], gain=-1.0), r"gain must be a finite number in \[0.0, inf\), got -1.0"),
         (dict(omega=[1.0, 2.0], gain=1.0, adjacency=np.ones((3, 3))), r"adjacency must have shape \(2, 2\)"),
         (dict(omega=[1.0, 2.0], gain=1.0, adjacency="star"), "adjacency must be 'ring' or an 2x2 matrix"),
         (dict(omega=[1.0, 2.0], gain=1.0, assisted=2), r"assisted must be a 0-based index in \[0, 1\] or None, got 2"),
@@ -118,3 +118,11 @@ def test_order_parameter_ignores_non_finite_phases():
 def test_group_parameter_errors(kwargs, message):
     with pytest.raises(ValueError, match="KuramotoGroup: " + message):
         KuramotoGroup(**kwargs)
+
+
+def test_wrapping_never_returns_two_pi():
+    from cogblocks.blocks.angles import wrap_2pi, wrap_angle
+
+    assert wrap_angle(-1e-17) == 0.0 and wrap_2pi(-1e-17) == 0.0
+    out = wrap_2pi(np.array([-1e-17, -0.5, 7.0]))
+    assert np.all((out >= 0) & (out < 2 * np.pi)) and out[0] == 0.0

@@ -310,7 +310,7 @@ def test_motion_generator_is_seeded():
         (lambda: PeriodEstimator(h=10, capacity=20), r"capacity must be an integer >= 23, got 20"),
         (lambda: PeriodEstimator(match_ratio=0.0), r"match_ratio must be a finite number in \(0.0, 1.0\]"),
         (lambda: PhaseComputer(search="fast"), r"search must be one of \['warm', 'full'\], got 'fast'"),
-        (lambda: PhaseComputer(jump_factor=1.0), r"jump_factor must be a finite number in \(1.0, inf\]"),
+        (lambda: PhaseComputer(jump_factor=1.0), r"jump_factor must be a finite number in \(1.0, inf\)"),
         (lambda: PhaseComputer(window=0), r"window must be an integer >= 1"),
         (lambda: ReferenceCustomizer(np.zeros((5, 2))), r"ReferenceCustomizer: reference must have shape \(any, 3\)"),
         (lambda: PhaseEstimator3D([[1.0, 2.0, np.nan]] * 4), r"reference must contain only finite numbers"),

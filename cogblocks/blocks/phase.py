@@ -1,0 +1,414 @@
+"""Online phase estimation of a 1D oscillation (Algorithm 1 of section 5.2.2) and its offline Hilbert reference."""
+
+from __future__ import annotations
+
+import cmath
+import math
+
+import numpy as np
+import scipy.signal
+
+from cogblocks.blocks.angles import TWO_PI, wrap_2pi, wrap_angle
+from cogblocks.blocks.core import LowPass
+from cogblocks.sim import Block, Diagram, Signal
+from cogblocks.sim.params import finite_number, positive_int
+
+__all__ = ["Algorithm1Phase", "PhaseEstimator", "hilbert_phase"]
+
+PHASE = Signal(unit="rad", wrapped=True)
+_ROUNDING = 1e-9  # relative size below which a centred position or velocity is rounding noise
+
+
+class Algorithm1Phase(Block):
+    """Phase and half-amplitudes of a 1D oscillation, sample by sample (Algorithm 1).
+
+    The leaf of :class:`PhaseEstimator`: it expects an already low-passed position. Each tick it
+
+    1. centres the position with a causal running mean over the last ``centre_periods`` estimated
+       periods (over every sample seen so far until a period is known); a whole number of periods
+       cancels the oscillation itself, which a fixed window in seconds does not (see the docs);
+    2. takes the velocity ``v`` and the acceleration ``a`` as backward differences, ``a`` over
+       ``accel_window`` seconds: ``a_t = (v_t − v_{t−m}) / (m dt)``;
+    3. updates the four half-amplitudes on the events of Algorithm 1 (sign convention of the
+       algorithm notes): ``A_v+ ← |v|`` on an upward zero crossing with ``v > 0``, ``A_v− ← |v|`` on a
+       downward one with ``v < 0``, ``A_p+ ← |p|`` when ``v`` turns from ``≥ 0`` to ``< 0`` with
+       ``a < 0`` (a maximum), ``A_p− ← |p|`` when ``v`` turns from ``< 0`` to ``≥ 0`` with ``a > 0``
+       (a minimum). Two guards that the algorithm's own assumption (maxima and minima alternate)
+       justifies: an extremum counts only on its own side of the centre (``p > 0`` for a maximum),
+       and only after one of the other kind (velocity chatter at an extremum would otherwise give
+       a second one a few samples later, and a period of a few samples);
+    4. estimates the frequency from the interval between two maxima or two minima;
+    5. outputs ``θ = atan2(−v / A_v±, p / A_p±) + lead`` wrapped to ``[0, 2π)``, each amplitude chosen
+       by the sign of ``p`` or ``v``; ``p = cos ωt`` gives ``θ = ωt``. ``lead`` is the phase lag,
+       at the estimated frequency, of the Butterworth filter in front (when ``cutoff`` is given)
+       plus a quarter step for the backward-difference velocity: the filter's lag would otherwise
+       be a phase error of 0.2-0.6 rad at 0.4-1.2 Hz with a 3 Hz cut-off.
+
+    With a one-sample acceleration the check of step 3 is void (a sign change of ``v`` always comes
+    with an acceleration of the matching sign). Over ``m`` samples it rejects a zero-velocity point
+    reached from the wrong side: an inflection plateau in mid-swing, where ``v`` touches zero and
+    the movement carries on in the same direction with a positive acceleration over the window.
+    After the two guards above it seldom decides anything (it changes no figure of the benchmark);
+    it matters when the alternation restarts, at start-up and after a drop-out.
+
+    Ports
+    -----
+    p : input, scalar, ``unit``
+        The low-passed position.
+    raw : input, scalar, ``unit``
+        The unfiltered position, read only to tell valid, missing and frozen samples apart (the
+        low-pass filter in front hides both).
+    theta : output, scalar, rad, wrapped
+        Estimated phase in ``[0, 2π)``.
+    amp_p : output, shape (2,), ``unit``
+        ``[A_p+, A_p−]``: the last maximum and the magnitude of the last minimum of the centred position.
+    amp_v : output, shape (2,), ``unit``/s
+        ``[A_v+, A_v−]``: the speed at the last upward and at the last downward zero crossing.
+
+    Parameters
+    ----------
+    unit : str
+        Unit of the position (``"mm"`` by default); velocities are in ``unit + "/s"``.
+    centre_periods : int
+        Length of the centring window, in estimated periods (>= 1).
+    accel_window : float
+        Span in seconds of the backward difference that gives the acceleration of the check
+        (>= 0; rounded to a whole number of steps, at least one).
+    min_dropout : float
+        Seconds of exactly repeated ``raw`` samples after which they are a drop-out (>= 0; at
+        least one repeat). Shorter runs are data: a quantised sensor repeats a sample or two at
+        an extremum.
+    holdoff : float
+        Seconds after a drop-out during which the phase keeps coasting and no amplitude is updated,
+        while the low-pass filter in front settles (>= 0).
+    max_period : float
+        Longest period in seconds that is tracked (> 0): it sizes the centring buffer, and a
+        longer interval between two maxima (or minima) is a pause, not a period.
+    cutoff : float, optional
+        Cut-off in Hz of the Butterworth low-pass in front of the block, whose lag is compensated
+        (see step 5); ``None`` (the default) compensates nothing.
+    order : int
+        Order of that filter (>= 1).
+
+    Notes
+    -----
+    Bad data policy.
+
+    * Before an amplitude is known (no event of its kind yet) it is the largest magnitude of its
+      signal seen so far on its half (a provisional amplitude); while that is 0, or below 1e-9 of
+      the position's magnitude (the filter's rounding noise), the normalised value is 0. So the
+      phase is 0 on an all-zero or constant input and never NaN.
+    * A NaN or inf ``raw`` sample is skipped: the outputs hold and no state advances.
+    * A drop-out (``raw`` exactly repeated for ``min_dropout`` seconds) updates no amplitude: the
+      phase coasts at the last estimated frequency (or holds if none is known yet) for the whole
+      drop-out and ``holdoff`` seconds after it, then Algorithm 1 takes over again. Amplitudes keep
+      their last values, the centring window is filled with the coasting oscillation (so that it
+      still spans whole periods), and no period is measured across the drop-out.
+    """
+
+    def __init__(
+        self,
+        *,
+        unit: str = "mm",
+        centre_periods: int = 2,
+        accel_window: float = 0.05,
+        min_dropout: float = 0.03,
+        holdoff: float = 0.2,
+        max_period: float = 5.0,
+        cutoff: float | None = None,
+        order: int = 2,
+        period: float | None = None,
+    ) -> None:
+        super().__init__(period=period)
+        if not isinstance(unit, str) or not unit:
+            raise ValueError(f"{type(self).__name__}: unit must be a non-empty string, got {unit!r}")
+        self.centre_periods = positive_int(self, "centre_periods", centre_periods)
+        self.accel_window = finite_number(self, "accel_window", accel_window, low=0.0)
+        self.min_dropout = finite_number(self, "min_dropout", min_dropout, low=0.0)
+        self.holdoff = finite_number(self, "holdoff", holdoff, low=0.0)
+        self.max_period = finite_number(self, "max_period", max_period, low=0.0, low_open=True)
+        self.cutoff = None if cutoff is None else finite_number(self, "cutoff", cutoff, low=0.0, low_open=True)
+        self.order = positive_int(self, "order", order)
+        self.add_input("p", shape=(), unit=unit)
+        self.add_input("raw", shape=(), unit=unit)
+        self.add_output("theta", PHASE)
+        self.add_output("amp_p", shape=(2,), unit=unit)
+        self.add_output("amp_v", shape=(2,), unit=f"{unit}/s")
+        self.add_state("primed", False)
+        self.add_state("raw_prev", 0.0)
+        self.add_state("repeats", 0)  # how many samples in a row repeated raw_prev exactly
+        self.add_state("p_prev", 0.0)  # filtered position
+        self.add_state("pc_prev", 0.0)  # centred position
+        self.add_state("v_prev", 0.0)
+        self.add_state("v_hist", np.zeros(1))  # the last m velocities, a ring
+        self.add_state("v_pos", 0)
+        self.add_state("csum", np.zeros(2))  # cumulative sums of the pushed positions, a ring
+        self.add_state("n_pushed", 0)
+        self.add_state("total", 0.0)
+        self.add_state("amp", np.zeros(4))  # A_p+, A_p-, A_v+, A_v-
+        self.add_state("known", np.zeros(4, dtype=bool))
+        self.add_state("last_extremum", 0)  # +1 after a maximum, -1 after a minimum, 0 at the start
+        self.add_state("t_max", -1.0)  # time of the last accepted maximum, -1 = none
+        self.add_state("t_min", -1.0)
+        self.add_state("omega", 0.0)  # estimated angular frequency, 0 = unknown
+        self.add_state("lead", 0.0)  # lag of the filtering in front at omega, added to the phase
+        self.add_state("phase", 0.0)
+        self.add_state("coast", 0)  # ticks left of coasting after a drop-out
+        self._pending: tuple | None = None
+
+    def setup(self) -> None:
+        self._m = max(1, round(self.accel_window / self.dt))
+        self._min_repeats = max(1, round(self.min_dropout / self.dt))
+        self._sos = None
+        if self.cutoff is not None:
+            if self.cutoff >= 0.5 / self.dt:
+                raise self._fail(f"cutoff {self.cutoff} Hz must be below the Nyquist frequency {0.5 / self.dt:g} Hz")
+            self._sos = scipy.signal.butter(self.order, self.cutoff, fs=1.0 / self.dt, output="sos").tolist()
+        self._holdoff_ticks = round(self.holdoff / self.dt)
+        self._size = round(self.centre_periods * self.max_period / self.dt) + 1
+        self.add_state("v_hist", np.zeros(self._m))
+        self.add_state("csum", np.zeros(self._size))
+
+    def _window(self, n_pushed: int) -> int:
+        """Number of samples in the centring window."""
+        n = n_pushed
+        if self.omega > 0.0:
+            n = min(n, round(self.centre_periods * TWO_PI / (self.omega * self.dt)))
+        return max(1, min(n, self._size - 1))
+
+    def output(self, k: int) -> None:
+        raw = float(self.raw.value)
+        if not math.isfinite(raw):
+            self._pending = None
+            return
+        pf = float(self.p.value)
+        dt = self.dt
+        primed = self.primed
+        repeats = self.repeats + 1 if primed and raw == self.raw_prev else 0
+        frozen = repeats >= self._min_repeats
+        coasting = frozen or self.coast > 0
+        phase = wrap_angle(self.phase + self.omega * dt) if coasting else 0.0
+        x = pf
+        if frozen:
+            # keep the centring window a whole number of periods: fill it with the coasting oscillation
+            c = math.cos(phase - self.lead) if self.omega > 0.0 else 0.0
+            x = self.p_prev - self.pc_prev + (self.amp[0] if c >= 0.0 else self.amp[1]) * c
+        n_pushed = self.n_pushed + 1
+        total = self.total + x
+        n = self._window(n_pushed)
+        start = n_pushed - n
+        # the slot of ``start`` is overwritten only in update(), after this read
+        pc = pf - (total - (self.csum[start % self._size] if start else 0.0)) / n
+        v = (pf - self.p_prev) / dt if primed else 0.0
+        a = (v - self.v_hist[self.v_pos]) / (self._m * dt)
+        amp = self.amp.copy()
+        known = self.known.copy()
+        last, t_max, t_min, omega, lead = self.last_extremum, self.t_max, self.t_min, self.omega, self.lead
+        if primed and not coasting:
+            t = (k // self.every) * dt
+            pc_prev, v_prev = self.pc_prev, self.v_prev
+            if pc_prev < 0.0 <= pc and v > 0.0:
+                amp[2], known[2] = v, True
+            if pc_prev >= 0.0 > pc and v < 0.0:
+                amp[3], known[3] = -v, True
+            if v_prev >= 0.0 > v and a < 0.0 and pc > 0.0 and last != 1:
+                amp[0], known[0], last = pc, True, 1
+                omega = self._frequency(t - t_max if t_max >= 0.0 else 0.0, omega)
+                t_max = t
+            if v_prev < 0.0 <= v and a > 0.0 and pc < 0.0 and last != -1:
+                amp[1], known[1], last = -pc, True, -1
+                omega = self._frequency(t - t_min if t_min >= 0.0 else 0.0, omega)
+                t_min = t
+            if omega != self.omega:
+                lead = self._lag(omega)
+            # provisional amplitudes: the largest magnitude seen so far on each half
+            half = 0 if pc >= 0.0 else 1
+            if not known[half]:
+                amp[half] = max(amp[half], abs(pc))
+            half = 2 if v >= 0.0 else 3
+            if not known[half]:
+                amp[half] = max(amp[half], abs(v))
+        if not coasting:
+            a_p = amp[0] if pc >= 0.0 else amp[1]
+            a_v = amp[2] if v >= 0.0 else amp[3]
+            tiny = _ROUNDING * abs(pf)  # amplitudes at the rounding level of the filter count as none
+            v_norm = v / a_v if a_v > tiny / dt else 0.0
+            p_norm = pc / a_p if a_p > tiny else 0.0
+            phase = wrap_angle(math.atan2(-v_norm, p_norm) + lead)
+        if frozen:
+            coast = self._holdoff_ticks
+            t_max = t_min = -1.0  # no period may span a drop-out
+            last = 0
+        else:
+            coast = max(0, self.coast - 1)
+        self.theta.value[...] = phase
+        self.amp_p.value[...] = amp[:2]
+        self.amp_v.value[...] = amp[2:]
+        self._pending = (
+            raw, repeats, pf, pc, v, n_pushed, total, amp, known, last, t_max, t_min, omega, lead, phase, coast
+        )
+
+    def _frequency(self, interval: float, omega: float) -> float:
+        """The angular frequency once a period of ``interval`` seconds (0 = none) was measured."""
+        if 0.0 < interval <= self.max_period:
+            return TWO_PI / interval
+        return omega
+
+    def _lag(self, omega: float) -> float:
+        """Phase lag in rad of the filter in front and of the backward-difference velocity at ``omega``."""
+        if self._sos is None:
+            return 0.0
+        z = cmath.exp(-1j * omega * self.dt)
+        h = 1.0 + 0j
+        for b0, b1, b2, _, a1, a2 in self._sos:
+            h *= (b0 + z * (b1 + z * b2)) / (1.0 + z * (a1 + z * a2))
+        # the velocity lags the position by half a step; it weighs half in the phase on average
+        return -cmath.phase(h) + 0.25 * omega * self.dt
+
+    def update(self, k: int) -> None:
+        if self._pending is None:
+            return
+        (
+            raw, repeats, pf, pc, v, n_pushed, total, amp, known, last, t_max, t_min, omega, lead, phase, coast
+        ) = self._pending
+        self.primed = True
+        self.raw_prev, self.repeats, self.p_prev, self.pc_prev, self.v_prev = raw, repeats, pf, pc, v
+        self.v_hist[self.v_pos] = v
+        self.v_pos = (self.v_pos + 1) % self._m
+        self.csum[n_pushed % self._size] = total
+        self.n_pushed, self.total = n_pushed, total
+        self.amp[...] = amp
+        self.known[...] = known
+        self.last_extremum, self.t_max, self.t_min, self.omega, self.lead = last, t_max, t_min, omega, lead
+        self.phase, self.coast = phase, coast
+
+
+class PhaseEstimator(Diagram):
+    """Online phase of a 1D oscillating position: a Butterworth low-pass followed by Algorithm 1.
+
+    A hierarchical diagram of two blocks, ``lowpass`` (:class:`~cogblocks.blocks.LowPass`, started
+    in steady state at the first sample) and ``algorithm`` (:class:`Algorithm1Phase`, which also
+    reads the unfiltered position to recognise missing and frozen samples). See
+    :class:`Algorithm1Phase` for the algorithm and the bad-data policy; ``docs/phase-estimation-1d.md``
+    for the measurements behind the defaults.
+
+    Ports
+    -----
+    p : input, scalar, ``unit``
+        Position along the axis of the movement (any offset).
+    theta : output, scalar, rad, wrapped
+        Estimated phase in ``[0, 2π)``; ``p = cos ωt`` gives ``θ ≈ ωt``.
+    amp_p : output, shape (2,), ``unit``
+        Current ``[A_p+, A_p−]``.
+    amp_v : output, shape (2,), ``unit``/s
+        Current ``[A_v+, A_v−]``. Position and velocity amplitudes are two ports so that each
+        carries its own unit.
+
+    Parameters
+    ----------
+    cutoff : float
+        Cut-off of the low-pass filter in Hz (> 0, below the Nyquist frequency of the block's step).
+        3 Hz by measurement: with the lag compensated, a lower cut-off damps noise and harmonics
+        but leans more on the frequency estimate; 3 Hz is within 5 % of the best cut-off in every
+        data set measured (2 Hz is best on slowly drifting signals, 4-6 Hz when the frequency
+        wanders fast). Without compensation the best cut-off is about 20 Hz and the error 45 %
+        larger.
+    order : int
+        Order of the Butterworth filter (>= 1).
+    compensate : bool
+        Add the filter's phase lag at the estimated frequency back to the phase (default). Without
+        it the output is plain Algorithm 1 on the filtered signal.
+    unit, centre_periods, accel_window, min_dropout, holdoff, max_period
+        As in :class:`Algorithm1Phase`.
+    period : float, optional
+        Period of both blocks, in seconds.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cogblocks.sim import Simulator
+    >>> t = np.arange(1000) * 0.01
+    >>> sim = Simulator(PhaseEstimator(), probes={"theta": "algorithm.theta"})
+    >>> theta = sim.run(n_steps=1000, inputs={"p": 300 + 150 * np.cos(2 * np.pi * 0.8 * t)})["theta"]
+    >>> bool(abs(theta[-1] - (2 * np.pi * 0.8 * t[-1]) % (2 * np.pi)) < 0.05)
+    True
+    """
+
+    def __init__(
+        self,
+        *,
+        cutoff: float = 3.0,
+        order: int = 2,
+        unit: str = "mm",
+        centre_periods: int = 2,
+        accel_window: float = 0.05,
+        min_dropout: float = 0.03,
+        holdoff: float = 0.2,
+        max_period: float = 5.0,
+        compensate: bool = True,
+        period: float | None = None,
+    ) -> None:
+        super().__init__(period=period)
+        if not isinstance(compensate, (bool, np.bool_)):
+            raise ValueError(f"PhaseEstimator: compensate must be True or False, got {compensate!r}")
+        cutoff = finite_number(self, "cutoff", cutoff, low=0.0, low_open=True)
+        order = positive_int(self, "order", order)
+        lowpass = self.add("lowpass", LowPass(cutoff, order))
+        algorithm = self.add(
+            "algorithm",
+            Algorithm1Phase(
+                unit=unit,
+                centre_periods=centre_periods,
+                accel_window=accel_window,
+                min_dropout=min_dropout,
+                holdoff=holdoff,
+                max_period=max_period,
+                cutoff=cutoff if compensate else None,
+                order=order,
+            ),
+        )
+        self.connect(lowpass.y, algorithm.p)
+        self.expose_input("p", lowpass.u, algorithm.raw)
+        self.expose_output("theta", algorithm.theta)
+        self.expose_output("amp_p", algorithm.amp_p)
+        self.expose_output("amp_v", algorithm.amp_v)
+
+
+def hilbert_phase(p: np.ndarray, *, dt: float = 0.01, highpass: float | None = None) -> np.ndarray:
+    """Offline phase of a 1D oscillation: the angle of the analytic signal of the centred position.
+
+    Same convention as :class:`PhaseEstimator`: ``p = cos ωt`` gives ``θ = ωt`` (the analytic signal
+    of ``cos ωt`` is ``exp(iωt)``).
+
+    Parameters
+    ----------
+    p : array_like, shape (n,)
+        Positions sampled every ``dt``; finite values only.
+    dt : float
+        Sampling time in seconds (used only with ``highpass``).
+    highpass : float, optional
+        Centre with a zero-phase (forward-backward) second-order Butterworth high-pass at this
+        cut-off in Hz instead of subtracting the mean: it also removes a slowly drifting offset.
+
+    Returns
+    -------
+    numpy.ndarray
+        Phases in ``[0, 2π)``, shape (n,). Like every Hilbert phase it is unreliable within about
+        one period of either end.
+    """
+    x = np.asarray(p, dtype=np.float64)
+    if x.ndim != 1 or len(x) < 2:
+        raise ValueError(f"hilbert_phase: p must be a 1-D array of at least 2 samples, got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"hilbert_phase: p must be finite; it has {int(np.sum(~np.isfinite(x)))} NaN/inf sample(s)")
+    dt = finite_number("hilbert_phase", "dt", dt, low=0.0, low_open=True)
+    if highpass is None:
+        x = x - x.mean()
+    else:
+        highpass = finite_number(
+            "hilbert_phase", "highpass", highpass, low=0.0, high=0.5 / dt, low_open=True, high_open=True
+        )
+        sos = scipy.signal.butter(2, highpass, btype="highpass", fs=1.0 / dt, output="sos")
+        x = scipy.signal.sosfiltfilt(sos, x)
+    theta = wrap_2pi(np.angle(scipy.signal.hilbert(x)))
+    return theta
