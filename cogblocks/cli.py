@@ -37,7 +37,7 @@ def _run_sync(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.sync import MOTIONS, plot_sync, run_sync
 
     motions = list(MOTIONS) if args.policy is None else args.policy
-    result = run_sync(args.group, motions)
+    result = run_sync(args.group, motions, domain=args.domain)
     if args.plot:
         plot_sync(args.group, motions[0], args.plot)
 
@@ -93,6 +93,12 @@ def _build_parser() -> argparse.ArgumentParser:
     sync.add_argument("--group", type=int, choices=(1, 2, 3), default=1, help="Table 2's group number (default 1)")
     sync.add_argument(
         "--policy", action="append", metavar="NAME", help="motion computer(s) to run (default: all); repeatable"
+    )
+    sync.add_argument(
+        "--domain",
+        choices=("phase", "position"),
+        default="phase",
+        help="'position': the L2 works on phases estimated from simulated arm positions (default 'phase')",
     )
     _common(sync)
     sync.set_defaults(handler=_run_sync)

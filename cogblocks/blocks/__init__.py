@@ -19,7 +19,7 @@ from cogblocks.blocks.core import (
     UnitDelay,
 )
 from cogblocks.blocks.estimation import KalmanEstimator, fit_noise
-from cogblocks.blocks.group import KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
+from cogblocks.blocks.group import ArmPositions, KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
 from cogblocks.blocks.l1 import L1, KinematicPredictor
 from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
 from cogblocks.blocks.phase import Algorithm1Phase, PhaseEstimator, hilbert_phase
@@ -34,6 +34,7 @@ from cogblocks.blocks.phase3d import (
 
 __all__ = [
     "Algorithm1Phase",
+    "ArmPositions",
     "BackwardDifference",
     "Blender",
     "Constant",

@@ -7,12 +7,23 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.blocks import Blender, KuramotoGroup, OrderParameter, Probe, Select, Substitute
+from cogblocks.blocks import (
+    ArmPositions,
+    Blender,
+    Demux,
+    KuramotoGroup,
+    Mux,
+    OrderParameter,
+    PhaseEstimator,
+    Probe,
+    Select,
+    Substitute,
+)
 from cogblocks.blocks.motion import MeanPhaseMotion
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.sim import Block, Diagram, Simulator
 
-__all__ = ["L2Sync", "MOTIONS", "pop_sync", "run_sync"]
+__all__ = ["L2Sync", "MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync"]
 
 
 class L2Sync(Diagram):
@@ -70,11 +81,37 @@ def _group_of(group: int | SyncGroup) -> SyncGroup:
     return TABLE2[group]
 
 
+def phase_sensing(n: int, amplitude: float = 150.0, noise_std: float = 1.0, seed: int = 0) -> Diagram:
+    """Phases → 1D arm positions → one :class:`PhaseEstimator` per participant → estimated phases.
+
+    A hierarchical block (input ``theta``, output ``theta_hat``) standing for
+    what a real set-up measures: the L2 architecture then works on estimated
+    phases, as it would on a motion-capture stream.
+    """
+    d = Diagram()
+    arms = d.add("arms", ArmPositions(n, amplitude, noise_std=noise_std, seed=seed))
+    split = d.add("split", Demux(n))
+    join = d.add("join", Mux(n))
+    d.connect(arms.p, split.u)
+    for i in range(n):
+        estimator = d.add(f"estimator{i}", PhaseEstimator())
+        d.connect(getattr(split, f"y{i}"), estimator.p)
+        d.connect(estimator.theta, getattr(join, f"u{i}"))
+    d.expose_input("theta", arms.theta)
+    d.expose_output("theta_hat", join.y)
+    d.expose_output("p", arms.p)
+    return d
+
+
 def pop_sync(
     group: int | SyncGroup = 1,
     l2: bool = True,
     motion: str | Block = "mean",
     blender: Blender | None = None,
+    *,
+    domain: str = "phase",
+    noise_std: float = 1.0,
+    seed: int = 0,
 ) -> Diagram:
     """A ready closed-loop diagram of the PoP of Social Connectedness.
 
@@ -93,7 +130,15 @@ def pop_sync(
         A name from :data:`MOTIONS` or a motion computer block.
     blender : Blender, optional
         The deliverable's blender by default.
+    domain : {"phase", "position"}
+        ``"position"`` puts :func:`phase_sensing` (block ``sensing``) between the
+        group and the L2 block: the phases drive 1D arm positions (150 mm
+        amplitude, ``noise_std`` mm of noise seeded by ``seed``) and the L2
+        architecture sees the phases estimated from them. The group and the
+        order parameter still use the true phases.
     """
+    if domain not in ("phase", "position"):
+        raise ValueError(f"pop_sync: domain must be 'phase' or 'position', got {domain!r}")
     params = _group_of(group)
     d = Diagram()
     kuramoto = d.add(
@@ -107,7 +152,13 @@ def pop_sync(
             motion = MOTIONS[motion](params)
         arch = d.add("l2", L2Sync(motion, params.assisted, blender))
         seen = d.add("seen", Substitute(params.assisted))
-        d.connect(kuramoto.theta, arch.theta, seen.u)
+        d.connect(kuramoto.theta, seen.u)
+        if domain == "position":
+            sensing = d.add("sensing", phase_sensing(params.n, noise_std=noise_std, seed=seed))
+            d.connect(kuramoto.theta, sensing.theta)
+            d.connect(sensing.theta_hat, arch.theta)
+        else:
+            d.connect(kuramoto.theta, arch.theta)
         d.connect(arch.theta_l2, kuramoto.theta_l2, seen.v)
         d.connect(seen.y, order.theta)
     else:
@@ -121,11 +172,12 @@ def _deviation(trace: Any) -> np.ndarray:
     return np.abs(np.angle(np.exp(1j * (trace["theta_l2"] - trace["theta_l0"]))))
 
 
-def run_sync(group: int | SyncGroup = 1, motions: list[str] | None = None) -> dict[str, Any]:
+def run_sync(group: int | SyncGroup = 1, motions: list[str] | None = None, domain: str = "phase") -> dict[str, Any]:
     """Table 3 for one group: the time-averaged order parameter without and with L2.
 
     The average is over every sample ``t = 0 … T`` (T/dt + 1 ticks, r(0) = 1), as
-    in the deliverable.
+    in the deliverable. ``domain="position"`` runs the L2 architecture on
+    phases estimated from arm positions (see :func:`pop_sync`).
 
     Returns
     -------
@@ -141,7 +193,7 @@ def run_sync(group: int | SyncGroup = 1, motions: list[str] | None = None) -> di
     results = []
     for name in motions:
         probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0"}
-        sim = Simulator(pop_sync(params, l2=True, motion=name), probes=probes)
+        sim = Simulator(pop_sync(params, l2=True, motion=name, domain=domain), probes=probes)
         trace = sim.run(n_steps=n_steps)
         r_with = float(trace["r"].mean())
         dev = _deviation(trace)
@@ -155,7 +207,7 @@ def run_sync(group: int | SyncGroup = 1, motions: list[str] | None = None) -> di
             }
         )
     number = group if isinstance(group, int) else params.name
-    return {"group": number, "r_without": r_without, "results": results}
+    return {"group": number, "domain": domain, "r_without": r_without, "results": results}
 
 
 def plot_sync(group: int | SyncGroup, motion: str | Block, path: str) -> None:

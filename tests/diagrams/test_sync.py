@@ -148,3 +148,30 @@ def test_blender_unstable_rate_refused_in_ready_diagram():
     d = pop_sync(1, blender=Blender(kappa_minus=250.0))
     with pytest.raises(DiagramError, match="dt \\* kappa_minus = 2.5 >= 2"):
         d.compile()
+
+
+def test_position_domain_estimates_phases_from_arm_positions():
+    n = 1001
+    probes = {"est": "sensing.theta_hat", "true": "group.theta", "p": "sensing.p"}
+    trace = Simulator(pop_sync(1, motion="mean", domain="position"), probes=probes).run(n_steps=n)
+    # arm positions are cosines of the true phases (150 mm, 1 mm noise)
+    np.testing.assert_allclose(trace["p"], 150 * np.cos(trace["true"]), atol=6.0)
+    err = np.abs(np.angle(np.exp(1j * (trace["est"] - trace["true"]))))
+    assert err[300:].mean() < 0.2  # after the estimators' first periods
+    r_without = Simulator(pop_sync(1, l2=False)).run(n_steps=n)["r"].mean()
+    assert trace["r"].mean() > r_without  # the L2 still helps on estimated phases
+    with pytest.raises(ValueError, match="pop_sync: domain must be 'phase' or 'position', got 'velocity'"):
+        pop_sync(1, domain="velocity")
+
+
+def test_arm_positions_block():
+    from cogblocks.blocks import ArmPositions
+
+    with pytest.raises(ValueError, match="ArmPositions: amplitude must be > 0"):
+        ArmPositions(3, amplitude=[1.0, 0.0, 1.0])
+    d = Diagram()
+    src = d.add("src", Playback(np.array([[0.0, np.pi]] * 3), unit="rad", wrapped=True))
+    arms = d.add("arms", ArmPositions(2, amplitude=[100.0, 50.0], offset=[10.0, -5.0]))
+    d.connect(src.y, arms.theta)
+    p = Simulator(d, probes=["arms.p"]).run(n_steps=3)["arms.p"]
+    np.testing.assert_allclose(p, [[110.0, -55.0]] * 3)
