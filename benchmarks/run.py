@@ -32,6 +32,7 @@ MODULES = [
     "benchmarks.phase3d_latency",
     "benchmarks.l1_delay",
     "benchmarks.phase1d_accuracy",
+    "benchmarks.amplification",
 ]
 
 

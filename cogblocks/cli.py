@@ -78,6 +78,33 @@ def _run_phase3d(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_amplification(args: argparse.Namespace) -> int:
+    from cogblocks.diagrams.amplification import PAPER, plot_amplification, run_amplification
+
+    result = run_amplification()
+    if args.plot:
+        plot_amplification(args.plot)
+
+    def percent(x: float | None) -> str:
+        return "–" if x is None else f"{100 * x:.0f} %"
+
+    def render(r: dict[str, Any]) -> str:
+        lines = ["PoP of Amplification: held-out no-fear movements of the synthetic library, made to encode fear"]
+        for name, row in r.items():
+            paper = PAPER[name]
+            distance = "–" if paper["final_distance_mm"] is None else f"{paper['final_distance_mm']:.0f} mm"
+            lines.append(
+                f"  {name:>8}: encoded {percent(row['encoded'])} (paper {percent(paper['encoded'])}), "
+                f"terminal ok {percent(row['terminal_ok'])} (paper {percent(paper['terminal_ok'])}), "
+                f"final distance {row['final_distance_mm']:.1f} mm (paper {distance}), "
+                f"n {row['n']} (paper {paper['n']})"
+            )
+        return "\n".join(lines)
+
+    _print_result(result, args.json, render)
+    return 0
+
+
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="cogblocks",
@@ -108,6 +135,12 @@ def _build_parser() -> argparse.ArgumentParser:
     phase3d.add_argument("--seed", type=int, default=0, help="seed of the trajectories (default 0)")
     _common(phase3d)
     phase3d.set_defaults(handler=_run_phase3d)
+
+    amplification = targets.add_parser(
+        "amplification", help="PoP of Amplification: encode fear in held-out no-fear movements, with and without RL"
+    )
+    _common(amplification)
+    amplification.set_defaults(handler=_run_amplification)
 
     demo = targets.add_parser("demo", help="a Kuramoto group (Table 2, group 3) without L2")
     demo.add_argument("--duration", type=float, default=300.0, help="simulated seconds (default 300)")

@@ -1,6 +1,10 @@
 """The block library."""
 
+import importlib
+from typing import Any
+
 from cogblocks.blocks.blend import Blender
+from cogblocks.blocks.buffer import Buffer
 from cogblocks.blocks.core import (
     Constant,
     Demux,
@@ -37,9 +41,11 @@ __all__ = [
     "ArmPositions",
     "BackwardDifference",
     "Blender",
+    "Buffer",
     "Constant",
     "Demux",
     "DiscreteLTI",
+    "EncoderClassifier",
     "Function",
     "Gain",
     "Integrator",
@@ -48,10 +54,12 @@ __all__ = [
     "KuramotoGroup",
     "KuramotoOscillator",
     "L1",
+    "LibraryProjector",
     "LowPass",
     "MeanPhaseMotion",
     "MotionComputer",
     "Mux",
+    "NoCorrection",
     "OrderParameter",
     "PeriodEstimator",
     "PhaseComputer",
@@ -60,13 +68,30 @@ __all__ = [
     "Playback",
     "PositionComputer",
     "Probe",
+    "RLCorrector",
     "ReferenceCustomizer",
     "Saturation",
     "Select",
     "Substitute",
     "Sum",
     "UnitDelay",
+    "VelocityBlender",
     "fit_noise",
     "hilbert_phase",
     "ring_adjacency",
 ]
+
+# Blocks built on torch are imported on first use, so that the rest of the library loads fast.
+_LAZY = {
+    "EncoderClassifier": "cogblocks.blocks.encoding",
+    "LibraryProjector": "cogblocks.blocks.encoding",
+    "VelocityBlender": "cogblocks.blocks.encoding",
+    "NoCorrection": "cogblocks.blocks.rl",
+    "RLCorrector": "cogblocks.blocks.rl",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'cogblocks.blocks' has no attribute {name!r}")

@@ -1,0 +1,411 @@
+"""PoP of Amplification (section 5.1 and the appendix paper): the L2 architecture replaying human movements.
+
+:class:`L2Amplification` is the online architecture as one block: a :class:`Buffer` of the human
+movement, the :class:`LibraryProjector`, the blending rule, a corrector and the
+:class:`~cogblocks.blocks.encoding.PositionComputer`. :func:`pop_amplification` replays one movement
+through it and classifies the altered movement online; :func:`run_amplification` gives the paper's
+validation figures on the held-out no-fear movements of the synthetic library.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from cogblocks.blocks.buffer import Buffer
+from cogblocks.blocks.core import Playback, Probe
+from cogblocks.blocks.encoding import (
+    EncoderClassifier,
+    EncoderNet,
+    LibraryProjector,
+    PositionComputer,
+    SolutionTable,
+    VelocityBlender,
+    library_fingerprint,
+    load_encoder,
+    solution_table,
+)
+from cogblocks.blocks.rl import CorrectorNet, NoCorrection, RLCorrector, load_corrector
+from cogblocks.data.reach import ReachLibrary, generate_reach_library
+from cogblocks.sim import Block, Diagram, Simulator
+from cogblocks.sim.params import one_of
+
+__all__ = [
+    "PAPER",
+    "AmplificationSetup",
+    "L2Amplification",
+    "amplification_setup",
+    "plot_amplification",
+    "pop_amplification",
+    "run_amplification",
+]
+
+#: The appendix paper's validation figures (65 real no-fear movements; the distance only without RL).
+PAPER = {
+    "blend": {"encoded": 0.89, "terminal_ok": 0.24, "final_distance_mm": 31.0, "n": 65},
+    "blend_rl": {"encoded": 0.65, "terminal_ok": 0.90, "final_distance_mm": None, "n": 65},
+}
+
+DELTA_POS_MM = 20.0  # terminal constraint (13c)
+
+
+class L2Amplification(Diagram):
+    """The L2 architecture of the PoP of Amplification, as one block.
+
+    ``v_h, p_h`` → :class:`~cogblocks.blocks.buffer.Buffer` (``buffer``) →
+    :class:`~cogblocks.blocks.encoding.LibraryProjector` (``projector``) → blending rule
+    (``blender``, a :class:`~cogblocks.blocks.encoding.VelocityBlender` by default) →
+    :class:`~cogblocks.blocks.encoding.PositionComputer` (``position``); the corrector
+    (``corrector``) sees positions and velocities and adds ``v_u`` to the blend. The corrector and
+    the blending rule can be swapped with :meth:`~cogblocks.sim.Diagram.replace` for any block with
+    the same ports.
+
+    Ports
+    -----
+    v_h : input, shape (3,), mm/s
+    p_h : input, shape (3,), mm
+    v_a, p_a : outputs, the altered velocity and position
+    c : output, the blending coefficient
+    v_r : output, the reference velocity
+    v_u, alpha : outputs, the correction and the corrector's action
+    nearest, reference : outputs, library indices of η_i and of the reference (−1 before the first decision)
+
+    Parameters
+    ----------
+    library : ReachLibrary
+        The movement library searched by the projector.
+    table : SolutionTable
+        w̃ on ``library`` for ``e_des`` (used by the default blender).
+    corrector : Block, optional
+        :class:`~cogblocks.blocks.rl.NoCorrection` by default, or an
+        :class:`~cogblocks.blocks.rl.RLCorrector`.
+    blending : Block, optional
+        A blending rule with the ports of :class:`~cogblocks.blocks.encoding.VelocityBlender`.
+    e_des : {0, 1}
+        1 encodes fear, 0 removes it (the fear and no-fear sets swap roles).
+    interval : int
+        ΔT, samples between two decisions.
+    capacity : int
+        Samples kept by the buffer.
+    candidates : array_like of bool, optional
+        Library movements the projector may choose.
+    """
+
+    def __init__(
+        self,
+        library: ReachLibrary,
+        table: SolutionTable,
+        *,
+        corrector: Block | None = None,
+        blending: Block | None = None,
+        e_des: int = 1,
+        interval: int = 10,
+        capacity: int = 200,
+        candidates: Any = None,
+    ) -> None:
+        super().__init__()
+        one_of("L2Amplification", "e_des", e_des, (0, 1))
+        if table.e_des != e_des:
+            raise ValueError(f"L2Amplification: the table is for e_des={table.e_des}, the architecture for {e_des}")
+        buffer = self.add("buffer", Buffer(capacity))
+        projector = self.add(
+            "projector", LibraryProjector(library, e_des=e_des, interval=interval, candidates=candidates)
+        )
+        blender = self.add("blender", blending if blending is not None else VelocityBlender(table))
+        fix = self.add("corrector", corrector if corrector is not None else NoCorrection())
+        position = self.add("position", PositionComputer())
+        self.connect(buffer.velocity, projector.velocity)
+        self.connect(buffer.count, projector.count)
+        for port in ("v_r", "nearest", "reference", "decisions"):
+            self.connect(f"projector.{port}", f"blender.{port}")
+        self.connect(projector.horizon, fix.horizon)
+        self.connect(fix.v_u, blender.v_u)
+        self.connect(blender.v_a, position.v, fix.v_a)
+        self.connect(position.p, fix.p_a)
+        self.expose_input("v_h", buffer.v, blender.v_h, fix.v_h)
+        self.expose_input("p_h", buffer.p, position.p_start, fix.p_h)
+        self.expose_output("v_a", blender.v_a)
+        self.expose_output("p_a", position.p)
+        self.expose_output("c", blender.c)
+        self.expose_output("v_r", projector.v_r)
+        self.expose_output("v_u", fix.v_u)
+        self.expose_output("alpha", fix.alpha)
+        self.expose_output("nearest", projector.nearest)
+        self.expose_output("reference", projector.reference)
+
+
+@dataclass(frozen=True)
+class AmplificationSetup:
+    """The data and models of a validation run.
+
+    Attributes
+    ----------
+    library : ReachLibrary
+        The whole synthetic library.
+    train, val : numpy.ndarray of int
+        The 70/30 split: the projector searches ``movements`` (the training part), the humans
+        replayed are taken from the validation part.
+    movements : ReachLibrary
+        ``library.subset(train)``.
+    encoder : EncoderNet
+    table : SolutionTable
+        w̃ on ``movements``.
+    e_des : int
+    """
+
+    library: ReachLibrary
+    train: np.ndarray
+    val: np.ndarray
+    movements: ReachLibrary
+    encoder: EncoderNet
+    table: SolutionTable
+    e_des: int
+
+    @property
+    def humans(self) -> np.ndarray:
+        """Library indices of the validation movements that do not encode ``e_des``."""
+        return self.val[self.library.fear[self.val] != bool(self.e_des)]
+
+
+@lru_cache(maxsize=4)
+def amplification_setup(seed: int | None = None, e_des: int = 1) -> AmplificationSetup:
+    """The shipped encoder, its library, a seeded 70/30 split and w̃ on the training part.
+
+    Parameters
+    ----------
+    seed : int, optional
+        Seed of ``ReachLibrary.split``; by default the split the shipped encoder was validated on,
+        so that no replayed movement was used to train it.
+    e_des : {0, 1}
+        Desired encoding level.
+    """
+    encoder = load_encoder()
+    meta = encoder.checkpoint
+    library = generate_reach_library(int(meta["library_seed"]))
+    if meta.get("library_sha256") not in (None, library_fingerprint(library)):
+        warnings.warn(
+            "the synthetic library differs from the one the shipped encoder was trained on (the generator "
+            "changed): retrain with `python -m cogblocks.training.encoder --seed 0` and "
+            "`python -m cogblocks.training.corrector --seed 0`",
+            UserWarning,
+            stacklevel=2,
+        )
+    split_seed = int(meta["split_seed"]) if seed is None else seed
+    train, val = library.split(float(meta["val_fraction"]), split_seed)
+    movements = library.subset(train)
+    table = solution_table(encoder, movements, e_des)
+    return AmplificationSetup(library, train, val, movements, encoder, table, e_des)
+
+
+def pop_amplification(
+    movement: tuple[np.ndarray, np.ndarray],
+    library: ReachLibrary | None = None,
+    *,
+    table: SolutionTable | None = None,
+    encoder: EncoderNet | None = None,
+    corrector: Block | None = None,
+    blending: Block | None = None,
+    e_des: int = 1,
+) -> Diagram:
+    """A ready diagram replaying one human movement through the L2 architecture.
+
+    Blocks: ``human_v`` and ``human_p`` (:class:`Playback` of the velocity, zero after its end, and
+    of the position, held), ``l2`` (:class:`L2Amplification`), ``altered`` (a :class:`Buffer` of the
+    altered movement) and ``encoder`` (an :class:`EncoderClassifier` of it); probes ``v_h``, ``p_h``,
+    ``v_a``, ``p_a``, ``v_r``, ``c`` and ``eps``.
+
+    Parameters
+    ----------
+    movement : (velocity, position)
+        Arrays of shape (T, 3) in mm/s and mm, one row per 10 ms tick.
+    library : ReachLibrary, optional
+        The library the projector searches; by default the training part of
+        :func:`amplification_setup` (with its ``table`` and ``encoder``).
+    table : SolutionTable, optional
+        w̃ on ``library``; computed (and cached) with ``encoder`` if not given.
+    encoder : EncoderNet, optional
+        The classifier of the altered movement; the shipped one by default.
+    corrector : Block, optional
+        :class:`~cogblocks.blocks.rl.NoCorrection` (default) or an :class:`~cogblocks.blocks.rl.RLCorrector`.
+    blending : Block, optional
+        A blending rule replacing the :class:`VelocityBlender`.
+    e_des : {0, 1}
+        1: encode fear; 0: remove it.
+    """
+    velocity, position = (np.asarray(a, dtype=np.float64) for a in movement)
+    if velocity.ndim != 2 or velocity.shape[1] != 3 or position.shape != velocity.shape:
+        raise ValueError(
+            f"pop_amplification: movement must be (velocity, position) of equal shapes (T, 3), "
+            f"got {velocity.shape} and {position.shape}"
+        )
+    if library is None:
+        setup = amplification_setup(None, e_des)
+        library, table = setup.movements, setup.table if table is None else table
+        encoder = setup.encoder if encoder is None else encoder
+    encoder = load_encoder() if encoder is None else encoder
+    table = solution_table(encoder, library, e_des) if table is None else table
+    d = Diagram()
+    human_v = d.add("human_v", Playback(velocity, unit="mm/s", at_end="zero"))
+    human_p = d.add("human_p", Playback(position, unit="mm", at_end="hold"))
+    l2 = d.add(
+        "l2",
+        L2Amplification(
+            library, table, corrector=corrector, blending=blending, e_des=e_des, capacity=library.max_len
+        ),
+    )
+    altered = d.add("altered", Buffer(library.max_len))
+    classifier = d.add("encoder", EncoderClassifier(encoder))
+    d.connect(human_v.y, l2.v_h)
+    d.connect(human_p.y, l2.p_h)
+    d.connect(l2.v_a, altered.v)
+    d.connect(l2.p_a, altered.p)
+    d.connect(altered.velocity, classifier.velocity)
+    d.connect(altered.count, classifier.count)
+    for name, source in (
+        ("v_h", human_v.y),
+        ("p_h", human_p.y),
+        ("v_a", l2.v_a),
+        ("p_a", l2.p_a),
+        ("v_r", l2.v_r),
+        ("c", l2.c),
+        ("eps", classifier.eps),
+    ):
+        d.add(name, Probe())
+        d.connect(source, f"{name}.u")
+    return d
+
+
+def _corrector_factories(network: CorrectorNet | None) -> dict[str, Callable[[], Block]]:
+    return {
+        "blend": NoCorrection,
+        "blend_rl": lambda: RLCorrector(network if network is not None else load_corrector()),
+    }
+
+
+def run_amplification(
+    variants: Sequence[str] = ("blend", "blend_rl"),
+    seed: int | None = None,
+    *,
+    limit: int | None = None,
+    e_des: int = 1,
+) -> dict[str, dict[str, Any]]:
+    """Replay every validation movement that does not encode ``e_des`` through the online architecture.
+
+    Each movement is replayed over the library's padded window (200 samples: the human and, without
+    correction, the altered movement have stopped by its end). The altered movement is classified by
+    the shipped encoder with the clipping rule; its final position is compared with the human's.
+
+    Parameters
+    ----------
+    variants : sequence of {"blend", "blend_rl"}
+        Blending alone, and blending with the RL corrector.
+    seed : int, optional
+        Seed of the 70/30 split; by default the encoder's own validation split (see
+        :func:`amplification_setup`).
+    limit : int, optional
+        Replay only the first ``limit`` movements (smoke tests).
+    e_des : {0, 1}
+        1: make no-fear movements encode fear; 0: remove fear from fear movements.
+
+    Returns
+    -------
+    dict
+        Per variant: ``encoded`` (share decided as ``e_des`` by the encoder), ``terminal_ok`` (share
+        whose final position is within 20 mm of the human's), ``final_distance_mm`` (mean) and ``n``.
+    """
+    setup = amplification_setup(seed, e_des)
+    factories = _corrector_factories(None)
+    unknown = [v for v in variants if v not in factories]
+    if unknown:
+        raise ValueError(f"run_amplification: unknown variant(s) {unknown}; choose from {sorted(factories)}")
+    humans = setup.humans if limit is None else setup.humans[:limit]
+    n_steps = setup.library.max_len
+    results = {}
+    for variant in variants:
+        encoded, distances = [], []
+        for index in humans:
+            d = pop_amplification(
+                (setup.library.velocity[index], setup.library.position[index]),
+                setup.movements,
+                table=setup.table,
+                encoder=setup.encoder,
+                corrector=factories[variant](),
+                e_des=e_des,
+            )
+            trace = Simulator(d, probes={"decision": "encoder.decision"}).run(n_steps=n_steps)
+            encoded.append(int(trace["decision"][-1]) == e_des)
+            distances.append(float(np.linalg.norm(trace["p_a"][-1] - trace["p_h"][-1])))
+        distances_mm = np.array(distances)
+        results[variant] = {
+            "encoded": float(np.mean(encoded)) if encoded else float("nan"),
+            "terminal_ok": float(np.mean(distances_mm <= DELTA_POS_MM)) if distances else float("nan"),
+            "final_distance_mm": float(distances_mm.mean()) if distances else float("nan"),
+            "n": len(humans),
+        }
+    return results
+
+
+def plot_amplification(path: str, index: int | None = None, variant: str = "blend", seed: int | None = None) -> None:
+    """Draw the analogue of the paper's Figure 6 for one validation movement.
+
+    Three panels with ``v_h`` (red), the reference ``v_r`` (green) and ``v_a`` (blue) per axis, and
+    ``c(t)``.
+
+    Parameters
+    ----------
+    path : str
+        Output file (png, pdf, svg).
+    index : int, optional
+        Which validation movement (position in :attr:`AmplificationSetup.humans`); by default the
+        first one the architecture makes encode fear, as the paper's representative example.
+    variant : {"blend", "blend_rl"}
+    seed : int, optional
+        Seed of the split, as in :func:`run_amplification`.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    setup = amplification_setup(seed, 1)
+    factories = _corrector_factories(None)
+    one_of("plot_amplification", "variant", variant, tuple(factories))
+    candidates = setup.humans if index is None else setup.humans[index : index + 1]
+    for human in candidates:
+        d = pop_amplification(
+            (setup.library.velocity[human], setup.library.position[human]),
+            setup.movements,
+            table=setup.table,
+            encoder=setup.encoder,
+            corrector=factories[variant](),
+        )
+        probes = {"reference": "l2.reference", "decision": "encoder.decision"}
+        trace = Simulator(d, probes=probes).run(n_steps=setup.library.max_len)
+        if trace["decision"][-1] == 1:
+            break
+    reference = int(trace["reference"][-1])
+    end = int(max(setup.library.length[human], setup.movements.length[reference]))
+    t = trace.t[:end]
+    fig, axes = plt.subplots(4, 1, figsize=(8, 8), sharex=True)
+    for axis, name in enumerate("xyz"):
+        ax = axes[axis]
+        ax.plot(t, trace["v_h"][:end, axis], color="tab:red", label="$v_h$ (human, no fear)")
+        ax.plot(t, setup.movements.velocity[reference, :end, axis], color="tab:green", label="$v_r$ (reference, fear)")
+        ax.plot(t, trace["v_a"][:end, axis], color="tab:blue", label="$v_a$ (altered)")
+        ax.set_ylabel(f"$v_{name}$ [mm/s]")
+    axes[0].legend(loc="lower right", fontsize=8)
+    axes[0].set_title(
+        f"Figure 6 analogue (synthetic data): movement {int(human)}, {variant}, final ε̂ {trace['eps'][-1]:.2f}"
+    )
+    axes[3].step(t, trace["c"][:end], where="post", color="k")
+    axes[3].set_ylim(-0.05, 1.05)
+    axes[3].set_ylabel("c")
+    axes[3].set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
