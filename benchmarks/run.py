@@ -33,6 +33,7 @@ MODULES = [
     "benchmarks.l1_delay",
     "benchmarks.phase1d_accuracy",
     "benchmarks.amplification",
+    "benchmarks.optimal_blending",
 ]
 
 

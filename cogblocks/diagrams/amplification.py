@@ -288,7 +288,7 @@ def _corrector_factories(network: CorrectorNet | None) -> dict[str, Callable[[],
 
 
 def run_amplification(
-    variants: Sequence[str] = ("blend", "blend_rl"),
+    variants: Sequence[str] = ("blend", "blend_rl", "optimised"),
     seed: int | None = None,
     *,
     limit: int | None = None,
@@ -302,8 +302,10 @@ def run_amplification(
 
     Parameters
     ----------
-    variants : sequence of {"blend", "blend_rl"}
-        Blending alone, and blending with the RL corrector.
+    variants : sequence of {"blend", "blend_rl", "optimised"}
+        Blending alone, blending with the RL corrector, and the optimisation-based blending
+        (:class:`~cogblocks.analysis.optimal_blending.OptimalBlender`, without corrector; not run
+        unless asked).
     seed : int, optional
         Seed of the 70/30 split; by default the encoder's own validation split (see
         :func:`amplification_setup`).
@@ -316,30 +318,39 @@ def run_amplification(
     -------
     dict
         Per variant: ``encoded`` (share decided as ``e_des`` by the encoder), ``terminal_ok`` (share
-        whose final position is within 20 mm of the human's), ``final_distance_mm`` (mean) and ``n``.
+        whose final position is within 20 mm of the human's), ``final_distance_mm`` (mean) and ``n``;
+        for ``"optimised"`` also ``solve_ms_p50`` and ``solve_ms_p99`` (CPU time per decision, ms) and
+        ``fallbacks`` (decisions that kept the previous plan or the table's blend).
     """
     setup = amplification_setup(seed, e_des)
     factories = _corrector_factories(None)
-    unknown = [v for v in variants if v not in factories]
+    unknown = [v for v in variants if v not in (*factories, "optimised")]
     if unknown:
-        raise ValueError(f"run_amplification: unknown variant(s) {unknown}; choose from {sorted(factories)}")
+        raise ValueError(
+            f"run_amplification: unknown variant(s) {unknown}; choose from {sorted([*factories, 'optimised'])}"
+        )
     humans = setup.humans if limit is None else setup.humans[:limit]
     n_steps = setup.library.max_len
     results = {}
     for variant in variants:
-        encoded, distances = [], []
+        encoded, distances, solve_ms, fallbacks = [], [], [], 0
         for index in humans:
+            blender = _optimal_blender(setup) if variant == "optimised" else None
             d = pop_amplification(
                 (setup.library.velocity[index], setup.library.position[index]),
                 setup.movements,
                 table=setup.table,
                 encoder=setup.encoder,
-                corrector=factories[variant](),
+                corrector=NoCorrection() if blender is not None else factories[variant](),
+                blending=blender,
                 e_des=e_des,
             )
             trace = Simulator(d, probes={"decision": "encoder.decision"}).run(n_steps=n_steps)
             encoded.append(int(trace["decision"][-1]) == e_des)
             distances.append(float(np.linalg.norm(trace["p_a"][-1] - trace["p_h"][-1])))
+            if blender is not None:
+                solve_ms.extend(blender.solve_ms)
+                fallbacks += blender.fallbacks
         distances_mm = np.array(distances)
         results[variant] = {
             "encoded": float(np.mean(encoded)) if encoded else float("nan"),
@@ -347,7 +358,17 @@ def run_amplification(
             "final_distance_mm": float(distances_mm.mean()) if distances else float("nan"),
             "n": len(humans),
         }
+        if variant == "optimised":
+            p50, p99 = np.percentile(solve_ms, [50, 99]) if solve_ms else (float("nan"), float("nan"))
+            results[variant].update(solve_ms_p50=float(p50), solve_ms_p99=float(p99), fallbacks=fallbacks)
     return results
+
+
+def _optimal_blender(setup: AmplificationSetup) -> Block:
+    # imported here: casadi (about 0.1 s to import) is loaded only when the optimised variant is asked for
+    from cogblocks.analysis.optimal_blending import OptimalBlender
+
+    return OptimalBlender(setup.movements, setup.encoder, setup.table, e_des=setup.e_des)
 
 
 def plot_amplification(path: str, index: int | None = None, variant: str = "blend", seed: int | None = None) -> None:

@@ -72,7 +72,7 @@ def test_removing_fear_swaps_the_roles(setup):
 
 
 def test_run_amplification_on_a_few_movements():
-    result = run_amplification(limit=3)
+    result = run_amplification(("blend", "blend_rl"), limit=3)
     assert set(result) == {"blend", "blend_rl"}
     for row in result.values():
         assert row["n"] == 3
@@ -87,13 +87,17 @@ def test_cli_json_and_plot(capsys, tmp_path, monkeypatch):
 
     # the full validation set is the example's and the docs' job: a few movements are enough here
     full = amplification.run_amplification
-    monkeypatch.setattr(amplification, "run_amplification", lambda: full(limit=4))
+    def few(variants=("blend", "blend_rl", "optimised")):
+        return full(variants, limit=4)
+
+    monkeypatch.setattr(amplification, "run_amplification", few)
     plot = tmp_path / "fig6.png"
     assert main(["run", "amplification", "--json", "--plot", str(plot)]) == 0
     result = json.loads(capsys.readouterr().out)
-    assert set(result) == set(PAPER)
-    for row in result.values():
-        assert set(row) == {"encoded", "terminal_ok", "final_distance_mm", "n"}
+    assert set(result) == set(PAPER) | {"optimised"}
+    for name, row in result.items():
+        extra = {"solve_ms_p50", "solve_ms_p99", "fallbacks"} if name == "optimised" else set()
+        assert set(row) == {"encoded", "terminal_ok", "final_distance_mm", "n"} | extra
     assert plot.stat().st_size > 1000
     assert main(["run", "amplification"]) == 0
     assert "paper 89 %" in capsys.readouterr().out

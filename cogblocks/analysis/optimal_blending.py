@@ -1,0 +1,659 @@
+"""Optimisation-based blending for the PoP of Amplification: Problem (13) solved online with casadi.
+
+The table-lookup architecture (:class:`~cogblocks.blocks.encoding.VelocityBlender`) restricts the
+altered velocity to a blend ``c·v_h + (1 − c)·v_r`` with ``c`` read from w̃ for the nearest library
+movement. :class:`OptimalBlender` drops the restriction and solves, at every decision point, the
+problem the table stands for (appendix paper, Problem (13) with the distance (3a) as objective):
+
+    min_u   Σ_t ‖u(t)‖²                                    (closest to the human, 3a)
+    s.t.    ε̂(v_a) ≥ 0.9 (e_des = 1) or ≤ 0.1 (e_des = 0)   (13b, with the clipping rule)
+            ‖p_a(T) − p_h(T)‖ ≤ δ_pos                       (13c)
+
+with ``v_a = v_h + u`` and ``u`` piecewise linear on knots every ΔT samples, over a receding horizon:
+the human's future is predicted by η_i (the projector's nearest library movement, expanded to its
+full length) and only the samples up to the next decision are applied. Cubic-spline resampling is
+linear in the samples for a fixed length (:func:`input_map`), so the classifier input is affine in
+the knots and the only nonlinearity is the network itself (:func:`encoder_to_casadi`).
+
+Why these decision variables. A correction added to the *measured* human velocity keeps the
+terminal constraint independent of the prediction: the final gap ``p_a − p_h`` is ``dt·Σ u``
+whatever the human does next (as long as the human has stopped by the planned end), so only the
+encoding constraint relies on η_i. Knots every ΔT samples keep the problem small (at most 3 × 19
+variables over a 200-sample window) and the correction smooth, where a per-sample correction would
+invite sample-to-sample wiggles that fool the classifier. A blend coefficient against ``v_r`` would inherit
+the table's limits (``docs/pop-amplification.md``: blending alone encodes 32 %).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from cogblocks.blocks.encoding import (
+    CLIP_HIGH,
+    COUNT,
+    N_POINTS,
+    REST_SPEED,
+    VELOCITY,
+    EncoderNet,
+    SolutionTable,
+    movement_length,
+    resampling_matrix,
+)
+from cogblocks.data.reach import ReachLibrary
+from cogblocks.sim import Block, Signal
+from cogblocks.sim.params import finite_number, one_of, positive_int
+
+__all__ = ["OptimalBlender", "PlanResult", "encoder_to_casadi", "input_map"]
+
+_U_SCALE = 100.0  # mm/s: knots are solved in units of 100 mm/s, so that they are of order one
+_PENALTY = 1e3  # weight of the encoding slack (per logit unit) against the correction's cost
+
+
+def encoder_to_casadi(network: EncoderNet, *, logit: bool = False, sharpness: float | None = None) -> ca.Function:
+    """The encoding network ε̂ as a casadi function of its 60 inputs, weights exported from torch.
+
+    The network is taken in evaluation mode (dropout is the identity):
+    ``ε̂ = sigmoid(w₂·relu(W₁ (x − mean)/scale + b₁) + b₂)``, in double precision.
+
+    Parameters
+    ----------
+    network : EncoderNet
+        The trained classifier.
+    logit : bool
+        Return the pre-sigmoid output ``z`` (ε̂ = sigmoid(z)) instead of ε̂: the form used in
+        constraints, since ``ε̂ ≥ 0.9`` is ``z ≥ ln 9`` and the sigmoid's flat tails do not slow a
+        solver down.
+    sharpness : float, optional
+        Replace ``relu(y)`` by the softplus ``max(y, 0) + log(1 + exp(−β|y|))/β``, β =
+        ``sharpness`` (above ``relu`` by at most ln 2/β): a smooth model of the network for
+        Newton-type solvers, which cycle on the kinks of the exact one.
+
+    Returns
+    -------
+    casadi.Function
+        ``x (60) → ε̂`` (or ``z``), named ``"encoder"``; callable on numbers and on MX symbols.
+    """
+    if not isinstance(network, EncoderNet):
+        raise ValueError(f"encoder_to_casadi: network must be an EncoderNet, got {type(network).__name__}")
+    w = _weights(network)
+    x = ca.MX.sym("x", len(w["mean"]))
+    pre = ca.mtimes(ca.DM(w["w1"]), (x - ca.DM(w["mean"])) / ca.DM(w["scale"])) + ca.DM(w["b1"])
+    hidden = ca.fmax(0, pre)
+    if sharpness is not None:
+        hidden = hidden + ca.log1p(ca.exp(-sharpness * ca.fabs(pre))) / sharpness
+    z = ca.dot(ca.DM(w["w2"]), hidden) + w["b2"]
+    return ca.Function("encoder", [x], [z if logit else 1 / (1 + ca.exp(-z))], ["x"], ["logit" if logit else "eps"])
+
+
+def input_map(length: int, n_points: int = N_POINTS) -> np.ndarray:
+    """The classifier input as a linear map of a movement's samples, for one restricted length.
+
+    Cubic-spline resampling on fixed abscissae is linear in the data, so its matrix is obtained by
+    resampling unit vectors with :func:`cogblocks.data.features.resample_movement`
+    (:func:`cogblocks.blocks.encoding.resampling_matrix`, shared with w̃ and the online classifier);
+    one copy per axis gives the 60 inputs.
+
+    Parameters
+    ----------
+    length : int
+        Samples of the restricted movement (≥ 1).
+    n_points : int
+        Resampled points per axis.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3·n_points, 3·length)
+        ``inputs = M @ velocity[:length].T.reshape(-1)``, axis-major on both sides as
+        ``resample_movement`` returns its points.
+    """
+    length = positive_int("input_map", "length", length)
+    return np.kron(np.eye(3), resampling_matrix(length, n_points))
+
+
+def _weights(network: EncoderNet) -> dict[str, Any]:
+    state = {k: v.detach().double().cpu().numpy() for k, v in network.state_dict().items()}
+    return {
+        "mean": state["mean"],
+        "scale": state["scale"],
+        "w1": state["hidden.weight"],
+        "b1": state["hidden.bias"],
+        "w2": state["out.weight"][0],
+        "b2": float(state["out.bias"][0]),
+    }
+
+
+def _weights_key(weights: dict[str, Any]) -> str:
+    digest = hashlib.sha256()
+    for name in sorted(weights):
+        digest.update(name.encode())
+        digest.update(np.ascontiguousarray(weights[name], dtype=np.float64).tobytes())
+    return digest.hexdigest()
+
+
+class _Deadline(ca.Callback):
+    """Iteration callback that stops casadi's SQP before an iteration that would end past the deadline.
+
+    Time is the calling thread's CPU time (``time.thread_time``): a solve is not cut short for the
+    time the scheduler gave other processes. An iteration is predicted to take as long as the
+    previous one (the first, as long as the set-up before it), so a solve ends within about one
+    iteration's jitter of the limit.
+    """
+
+    def __init__(self, sizes: dict[str, int]) -> None:
+        ca.Callback.__init__(self)
+        self.sizes = sizes
+        self.deadline = self.last = math.inf
+        self.construct("optimal_blending_deadline", {})
+
+    def start(self, limit: float) -> None:
+        """Arm the deadline ``limit`` seconds of CPU time from now, for the next solve."""
+        self.last = time.thread_time()
+        self.deadline = self.last + limit
+
+    def get_n_in(self) -> int:
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_name_in(self, i: int) -> str:
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i: int) -> str:
+        return "stop"
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        return ca.Sparsity.dense(self.sizes[ca.nlpsol_out(i)])
+
+    def eval(self, arg: list) -> list:
+        now = time.thread_time()
+        step, self.last = now - self.last, now
+        return [1 if now + step > self.deadline else 0]
+
+
+@dataclass
+class _Solver:
+    function: ca.Function
+    deadline: _Deadline | None  # sqpmethod only: IPOPT has its own time limit
+
+
+# Built once per (network, knots per axis, settings) and shared by every block: a validation run
+# makes a block per movement, and building a solver takes about 10 ms.
+_SOLVERS: dict[tuple, _Solver] = {}
+
+
+def _solver(network: EncoderNet, key: str, n: int, method: str, time_limit: float, sharpness: float) -> _Solver:
+    """The parametric NLP of one decision with ``n`` free knots per axis (see :class:`OptimalBlender`)."""
+    cache_key = (key, n, method, time_limit, sharpness)
+    if cache_key in _SOLVERS:
+        return _SOLVERS[cache_key]
+    n_in = network.hidden.in_features
+    w = ca.MX.sym("w", 3 * n)  # knots, axis-major, in units of _U_SCALE
+    s = ca.MX.sym("s")  # encoding slack, in logit units
+    sizes = {"A": n_in * 3 * n, "x0": n_in, "G": n * n, "q": 3 * n, "cs": n, "g0": 3, "dir": 3, "rhs": 4}
+    p = ca.MX.sym("p", sum(sizes.values()))
+    part = dict(zip(sizes, ca.vertsplit(p, [int(i) for i in np.cumsum([0, *sizes.values()])]), strict=True))
+    a, g = ca.reshape(part["A"], n_in, 3 * n), ca.reshape(part["G"], n, n)
+    sign, z_rhs, speed_rhs, delta = ca.vertsplit(part["rhs"])
+    axes = ca.vertsplit(w, [0, n, 2 * n, 3 * n])
+    cost = sum(ca.dot(u, ca.mtimes(g, u)) for u in axes) + 2 * ca.dot(part["q"], w) + _PENALTY * s
+    z = encoder_to_casadi(network, logit=True, sharpness=sharpness)(ca.mtimes(a, w) + part["x0"])
+    gap = part["g0"] + ca.vertcat(*[ca.dot(part["cs"], u) for u in axes])
+    last = ca.vertcat(*[u[n - 1] for u in axes])
+    constraints = ca.vertcat(sign * z + s - z_rhs, ca.sumsqr(gap) - delta**2, ca.dot(part["dir"], last) - speed_rhs)
+    nlp = {"x": ca.vertcat(w, s), "p": p, "f": cost, "g": constraints}
+    deadline = None
+    if method == "ipopt":
+        options = {
+            "print_time": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.max_cpu_time": time_limit,
+            "ipopt.tol": 1e-6,
+            "ipopt.warm_start_init_point": "yes",
+            "ipopt.mu_init": 1e-3,
+        }
+    else:
+        deadline = _Deadline({"x": 3 * n + 1, "f": 1, "g": 3, "lam_x": 3 * n + 1, "lam_g": 3, "lam_p": p.numel()})
+        options = {
+            "print_time": False,
+            "print_header": False,
+            "print_iteration": False,
+            "print_status": False,
+            "qpsol": "qrqp",
+            # an indefinite QP can keep qrqp busy for tens of ms: cap it, the next SQP iteration recovers
+            "qpsol_options": {
+                "print_iter": False,
+                "print_header": False,
+                "print_info": False,
+                "error_on_fail": False,
+                "max_iter": 50,
+            },
+            "max_iter": 50,
+            "error_on_fail": False,
+            "iteration_callback": deadline,
+        }
+    solver = _Solver(ca.nlpsol(f"optimal_blending_{n}", method, nlp, options), deadline)
+    _SOLVERS[cache_key] = solver
+    return solver
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """The outcome of one decision of :class:`OptimalBlender`.
+
+    Attributes
+    ----------
+    tick : int
+        The decision's tick (the plan applies from it on).
+    end : int
+        Planned length ``L`` of the altered movement in force after the decision (0: none).
+    eps : float
+        ε̂ of the altered movement the block will emit if the human follows the prediction: the
+        emitted past, then the plan in force, classified as the online classifier does (restricted
+        to its samples faster than ``rest_speed``, resampled).
+    distance_mm : float
+        ``‖p_a(T) − p_h(T)‖`` at the end of the window under the same assumption.
+    solve_ms : float
+        Time of the decision (building the problem, solving, checking), in ms of the thread's CPU
+        time: the wall time on a dedicated core, not inflated by the slices a shared machine's
+        scheduler gives other processes (``benchmarks/optimal_blending.py`` measures both).
+    status : str
+        ``"converged"``; ``"accepted"`` (stopped by the time limit or the iteration limit, but the
+        iterate meets the clipping threshold and δ_pos); ``"fallback"``; ``"ended"`` (the planned
+        movement was over: nothing solved).
+    """
+
+    tick: int
+    end: int
+    eps: float
+    distance_mm: float
+    solve_ms: float
+    status: str
+
+
+class OptimalBlender(Block):
+    """Blending by optimisation: ``v_a = v_h + u + v_u``, ``u`` re-planned at every decision (Problem 13).
+
+    A drop-in replacement for :class:`~cogblocks.blocks.encoding.VelocityBlender` (the same ports):
+    ``pop_amplification(..., blending=OptimalBlender(library, encoder, table))``. Before the
+    projector's first decision the human velocity passes through. At each decision (tick ``T``,
+    when ``decisions`` changes) the block solves with casadi
+
+        min  Σ_{T ≤ t < L} ‖u(t)‖² + ρ·s
+        s.t. ±logit ε̂(R_L v_a) + s ≥ logit(0.9 + margin),  s ≥ 0      (encoding, 13b)
+             ‖g + dt·Σ_t u(t)‖ ≤ δ_pos − terminal_margin            (terminal, 13c)
+             d·v_a(L − 1) ≥ end_speed                                (the movement ends at L)
+
+    ``u`` is piecewise linear on knots every ``knot_spacing`` samples from ``T − 1`` (held at the
+    correction applied there, so ``v_a`` stays continuous) to ``L − 1``; ``v_a`` is the emitted past
+    followed by the predicted human (η_i from ``T``, zero once the human is at rest) plus ``u``;
+    ``R_L`` resamples the first ``L`` samples (:func:`input_map`); ``g`` is the position gap so far
+    (the block integrates ``v_a − v_h`` itself); ``d`` is the human's reach direction so far. The
+    network inside the solver is smoothed (softplus of sharpness β = ``sharpness`` instead of ReLU);
+    the reported ε̂ and the acceptance checks use the exact network.
+
+    The classifier restricts a movement to its samples up to the last one faster than 1 mm/s, so
+    the plan fixes that length ``L``: at least the lengths of η_i and of the reference, past ``T``
+    while the human still moves, and never decreasing; from ``L`` on the block outputs zero, and
+    the last constraint keeps the last planned sample moving, so the classifier sees the length the
+    plan was made for. The encoding constraint is soft with an exact penalty (ρ = 1000 per logit
+    unit): when it cannot be met, the plan gets as close as it can instead of failing. Only the
+    samples up to the next decision are applied before it re-plans (receding horizon),
+    warm-started from the previous plan sampled at the new knots (at the first decision, from the
+    table's blend on the prediction) and from the previous multipliers.
+
+    Fallback: a solve stopped by the time limit (or the iteration limit) is used if its iterate
+    meets the clipping threshold (ε̂ > 0.9, or < 0.1) and δ_pos for the predicted movement;
+    otherwise the previous plan is kept (it is defined on absolute time, so keeping it is shifting
+    it), or at the first decision the table-lookup blend ``c = w̃(η_i, v_r)`` is used until a solve
+    succeeds (pass-through without a table). ``fallbacks`` counts them; :attr:`results` has every
+    decision and :attr:`solve_ms` the times of those that ran the solver.
+
+    Ports
+    -----
+    v_h, v_r, v_u, nearest, reference, decisions : inputs
+        As :class:`~cogblocks.blocks.encoding.VelocityBlender`.
+    v_a : output, shape (3,), mm/s
+        The altered velocity.
+    c : output, scalar
+        A diagnostic: the blending coefficient whose blend of ``v_h`` and ``v_r`` is closest to
+        ``v_a`` at this tick, clipped to [0, 1] (1 before the first decision, when ``v_h = v_r``
+        or when an input is not finite); the table's ``c`` while falling back to it.
+
+    Parameters
+    ----------
+    library : ReachLibrary
+        The projector's library (η_i and the reference are indices into it).
+    network : EncoderNet
+        The classifier whose ε̂ the plan constrains.
+    table : SolutionTable, optional
+        w̃ on ``library`` for ``e_des``: the first warm start and the first decision's fallback.
+    e_des : {0, 1}
+        1: encode fear (ε̂ > 0.9); 0: remove it (ε̂ < 0.1).
+    margin : float
+        Planned ε̂ beyond the clipping threshold (0.05: the plan asks for ε̂ ≥ 0.95, or ≤ 0.05),
+        against the prediction's error.
+    delta_pos : float
+        δ_pos in mm (20).
+    terminal_margin : float
+        mm of δ_pos kept in reserve by the plan (5: the plan asks for 15 mm).
+    end_speed : float
+        Speed (mm/s) of the last planned sample along the reach direction; above the classifier's
+        rest speed (1 mm/s) so that the restricted length is the planned one.
+    knot_spacing : int
+        Samples between knots (ΔT = 10).
+    time_limit_ms : float
+        CPU-time limit of one solve (8 ms): so that the plans do not depend on the load of the
+        machine. sqpmethod: an iteration callback stops it before an iteration that, taking as long
+        as the previous one, would end past the limit; IPOPT: ``max_cpu_time``, checked at the end
+        of each iteration. Building the problem and checking the result (about 0.3 ms) come on top.
+    solver : {"sqpmethod", "ipopt"}
+        casadi's SQP with the ``qrqp`` QP solver (default: a few iterations of a dense QP), or
+        IPOPT (interior point; about 0.5 ms per iteration of overhead at this size).
+    sharpness : float
+        β of the softplus that replaces ReLU inside the solver (10; pre-activations are of order 1).
+    rest_speed : float
+        Speed (mm/s) at or below which the human is at rest (1, the classifier's).
+
+    Notes
+    -----
+    The solve runs in the output phase of the decision's tick (it needs the projector's new
+    decision) and is committed in the update phase. :attr:`results` is a record of the decisions
+    since the last reset, not block state: restoring a snapshot does not rewind it. Bad data: a
+    non-finite ``v_h`` gives a non-finite ``v_a``, as in :class:`VelocityBlender`, and is recorded as
+    zero for later plans.
+    """
+
+    def __init__(
+        self,
+        library: ReachLibrary,
+        network: EncoderNet,
+        table: SolutionTable | None = None,
+        *,
+        e_des: int = 1,
+        margin: float = 0.05,
+        delta_pos: float = 20.0,
+        terminal_margin: float = 5.0,
+        end_speed: float = 5.0,
+        knot_spacing: int = 10,
+        time_limit_ms: float = 8.0,
+        solver: str = "sqpmethod",
+        sharpness: float = 10.0,
+        rest_speed: float = REST_SPEED,
+        period: float | None = None,
+    ) -> None:
+        super().__init__(period=period)
+        if not isinstance(library, ReachLibrary):
+            raise ValueError(f"OptimalBlender: library must be a ReachLibrary, got {type(library).__name__}")
+        if not isinstance(network, EncoderNet):
+            raise ValueError(f"OptimalBlender: network must be an EncoderNet, got {type(network).__name__}")
+        self.e_des = one_of(self, "e_des", e_des, (0, 1))
+        if table is not None and (not isinstance(table, SolutionTable) or table.e_des != self.e_des):
+            raise ValueError(
+                f"OptimalBlender: table must be a SolutionTable for e_des={self.e_des}, "
+                f"got {type(table).__name__} for e_des={getattr(table, 'e_des', None)}"
+            )
+        self.margin = finite_number(self, "margin", margin, low=0.0, high=1.0 - CLIP_HIGH, high_open=True)
+        self.delta_pos = finite_number(self, "delta_pos", delta_pos, low=0.0, low_open=True)
+        self.terminal_margin = finite_number(
+            self, "terminal_margin", terminal_margin, low=0.0, high=self.delta_pos, high_open=True
+        )
+        self.end_speed = finite_number(self, "end_speed", end_speed, low=0.0)
+        self.knot_spacing = positive_int(self, "knot_spacing", knot_spacing)
+        self.time_limit_ms = finite_number(self, "time_limit_ms", time_limit_ms, low=0.0, low_open=True)
+        self.solver = one_of(self, "solver", solver, ("sqpmethod", "ipopt"))
+        self.sharpness = finite_number(self, "sharpness", sharpness, low=0.0, low_open=True)
+        self.rest_speed = finite_number(self, "rest_speed", rest_speed, low=0.0)
+        self.library = library
+        self.network = network
+        self.table = table
+        self._w = _weights(network)
+        self._key = _weights_key(self._w)
+        self._sign = 1.0 if self.e_des == 1 else -1.0
+        self._z_target = math.log((CLIP_HIGH + self.margin) / (1.0 - CLIP_HIGH - self.margin))
+        self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)
+        self._pending: dict[str, Any] | None = None
+        n = library.max_len
+        self.add_input("v_h", VELOCITY)
+        self.add_input("v_r", VELOCITY)
+        self.add_input("v_u", VELOCITY, default=np.zeros(3))
+        self.add_input("nearest", COUNT)
+        self.add_input("reference", COUNT)
+        self.add_input("decisions", COUNT)
+        self.add_output("v_a", VELOCITY)
+        self.add_output("c", Signal(unit="1"), initial=1.0)
+        self.add_state("human", np.zeros((n, 3)))  # v_h received, by tick
+        self.add_state("altered", np.zeros((n, 3)))  # v_a emitted, by tick
+        self.add_state("plan", np.zeros((n, 3)))  # the correction u in force, by tick
+        self.add_state("end", 0)  # its planned length L; 0: no plan yet
+        self.add_state("table_c", math.nan)  # the table's c while falling back to it
+        self.add_state("handled", 0)  # decisions handled
+        self.add_state("multipliers", np.zeros(4))  # of the 3 constraints and the slack's bound: warm start
+        self.add_state("fallbacks", 0)
+        self.results: list[PlanResult] = []
+
+    def setup(self) -> None:
+        # build every solver and resampling matrix a decision may need now, not in the middle of the loop
+        spacing, n = self.knot_spacing, len(self.human)
+        for knots in range(1, len(range(spacing, n - 1, spacing)) + 2):
+            _solver(self.network, self._key, knots, self.solver, self.time_limit_ms / 1e3, self.sharpness)
+        for length in range(1, n + 1):
+            resampling_matrix(length)
+
+    def reset(self) -> None:
+        super().reset()
+        self.results = []
+        self._pending = None
+
+    @property
+    def solve_ms(self) -> np.ndarray:
+        """Time (CPU ms, see :class:`PlanResult`) of every decision that ran the solver, in order."""
+        return np.array([r.solve_ms for r in self.results if r.status != "ended"])
+
+    def output(self, k: int) -> None:
+        t = k // self.every
+        self._pending = None
+        if int(self.decisions.value) > self.handled and t < len(self.human):
+            self._pending = self._decide(t)
+        state = {"plan": self.plan, "end": self.end, "table_c": self.table_c, **(self._pending or {})}
+        v_h, v_r, v_a = self.v_h.value, self.v_r.value, self.v_a.value
+        if state["end"] > 0:
+            v_a[...] = v_h + state["plan"][t] if t < state["end"] else 0.0
+            self.c.value[...] = _equivalent_c(v_a, v_h, v_r)
+        elif math.isfinite(state["table_c"]):
+            self.c.value[...] = state["table_c"]
+            v_a[...] = state["table_c"] * v_h + (1.0 - state["table_c"]) * v_r
+        else:
+            self.c.value[...] = 1.0
+            v_a[...] = v_h
+        v_a += self.v_u.value
+
+    def update(self, k: int) -> None:
+        t = k // self.every
+        if self._pending is not None:
+            pending, self._pending = self._pending, None
+            self.results.append(pending.pop("result"))
+            for name, value in pending.items():
+                if np.ndim(value) == 0:
+                    setattr(self, name, value)
+                else:
+                    getattr(self, name)[...] = value  # in place: restored snapshots keep the arrays
+        if t < len(self.human):
+            self.human[t] = np.nan_to_num(self.v_h.value, nan=0.0, posinf=0.0, neginf=0.0)
+            self.altered[t] = np.nan_to_num(self.v_a.value, nan=0.0, posinf=0.0, neginf=0.0)
+
+    # --- one decision ---------------------------------------------------------------------------------
+
+    def _decide(self, t: int) -> dict[str, Any]:
+        """The decision at tick ``t``: the state to commit in the update phase, with its :class:`PlanResult`."""
+        start = time.thread_time()
+        new: dict[str, Any] = {"handled": int(self.decisions.value)}
+        nearest, reference = int(self.nearest.value), int(self.reference.value)
+        lib = self.library
+        at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
+        length = max(self.end, int(lib.length[nearest]), int(lib.length[reference]))
+        if not at_rest:
+            length = max(length, t + self.knot_spacing)
+        length = min(length, len(self.human))
+        predicted = np.zeros_like(self.human)
+        if not at_rest:
+            predicted[t:] = lib.velocity[nearest, t : len(self.human)]
+        if length <= t:  # the planned movement is over: nothing left to decide
+            status = "ended"
+        else:
+            problem = self._problem(t, length, predicted, reference)
+            w, multipliers, status = self._solve(problem, self._initial_guess(problem, predicted, reference, nearest))
+            if w is None:
+                new["fallbacks"] = self.fallbacks + 1
+                new["multipliers"] = np.zeros(4)
+                if self.end == 0 and self.table is not None:
+                    new["table_c"] = self.table.lookup(nearest, reference)
+            else:
+                plan = self.plan.copy()
+                plan[t:length] = problem["phi0"][:, None] * problem["u_prev"] + problem["phi"] @ w.reshape(3, -1).T
+                plan[length:] = 0.0
+                new.update(plan=plan, end=length, table_c=math.nan, multipliers=multipliers)
+        eps, distance = self._outcome(
+            t, predicted, {"plan": self.plan, "end": self.end, "table_c": self.table_c, **new}
+        )
+        new["result"] = PlanResult(
+            t, new.get("end", self.end), eps, distance, (time.thread_time() - start) * 1e3, status
+        )
+        return new
+
+    def _problem(self, t: int, length: int, predicted: np.ndarray, reference: int) -> dict[str, Any]:
+        """The parameters of the decision at tick ``t`` for a movement of ``length`` samples."""
+        dt = self.dt
+        u_prev = self.altered[t - 1] - self.human[t - 1] if t > 0 else np.zeros(3)
+        knots = np.r_[t - 1, np.arange(t - 1 + self.knot_spacing, length - 1, self.knot_spacing), length - 1]
+        samples = np.arange(t, length)
+        basis = np.stack([np.interp(samples, knots, e) for e in np.eye(len(knots))], axis=1)
+        phi0, phi = basis[:, 0], basis[:, 1:] * _U_SCALE  # phi: samples per knot value in units of _U_SCALE
+        resample = resampling_matrix(length)
+        base = np.concatenate([self.altered[:t], predicted[t:length] + phi0[:, None] * u_prev])
+        x0 = (resample @ base).T.reshape(-1)
+        a = np.kron(np.eye(3), resample[:, t:] @ phi)
+        gram = phi.T @ phi / _U_SCALE**2  # the cost Σ‖u‖² in units of _U_SCALE²
+        q = (phi.T @ phi0)[None, :] * u_prev[:, None] / _U_SCALE**2
+        cs = dt * phi.sum(axis=0)
+        g0 = dt * (
+            (self.altered[:t] - self.human[:t]).sum(axis=0) + phi0.sum() * u_prev - predicted[length:].sum(axis=0)
+        )
+        reach = self.human[:t].sum(axis=0)
+        if not np.linalg.norm(reach) > 0.0:
+            reach = self.library.velocity[reference].sum(axis=0)
+        direction = reach / max(np.linalg.norm(reach), 1e-12)
+        speed_rhs = self.end_speed - direction @ predicted[length - 1]
+        p = np.concatenate(
+            [
+                a.ravel(order="F"),
+                x0,
+                gram.ravel(order="F"),
+                q.ravel(),
+                cs,
+                g0,
+                _U_SCALE * direction,
+                [self._sign, self._z_target, speed_rhs, self.delta_pos - self.terminal_margin],
+            ]
+        )
+        return {
+            "n": phi.shape[1],
+            "p": p,
+            "a": a,
+            "x0": x0,
+            "g0": g0,
+            "cs": cs,
+            "knots": knots[1:],
+            "phi": phi,
+            "phi0": phi0,
+            "u_prev": u_prev,
+        }
+
+    def _initial_guess(
+        self, problem: dict[str, Any], predicted: np.ndarray, reference: int, nearest: int
+    ) -> np.ndarray:
+        """The plan in force at the new knots; at the first plan, the table's blend on the prediction."""
+        knots = problem["knots"]
+        if self.end > 0:
+            guess = self.plan[knots]
+        elif self.table is not None:
+            c = self.table.lookup(nearest, reference)
+            guess = (1.0 - c) * (self.library.velocity[reference, knots] - predicted[knots])
+        else:
+            guess = np.zeros((len(knots), 3))
+        return guess.T.reshape(-1) / _U_SCALE
+
+    def _logit(self, x: np.ndarray) -> float:
+        w = self._w
+        return float(w["w2"] @ np.maximum(w["w1"] @ ((x - w["mean"]) / w["scale"]) + w["b1"], 0.0) + w["b2"])
+
+    def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
+        """Knots (None: fall back), multipliers and status of one solve."""
+        n = problem["n"]
+        solver = _solver(self.network, self._key, n, self.solver, self.time_limit_ms / 1e3, self.sharpness)
+        slack = max(self._z_target - self._sign * self._logit(problem["x0"] + problem["a"] @ w0), 0.0)
+        if solver.deadline is not None:
+            solver.deadline.start(self.time_limit_ms / 1e3)
+        out = solver.function(
+            x0=np.r_[w0, slack],
+            p=problem["p"],
+            lbx=np.r_[np.full(3 * n, -np.inf), 0.0],
+            ubx=np.inf,
+            lbg=np.array([0.0, -np.inf, 0.0]),
+            ubg=np.array([np.inf, 0.0, np.inf]),
+            lam_g0=self.multipliers[:3],
+            lam_x0=np.r_[np.zeros(3 * n), self.multipliers[3]],
+        )
+        x = np.asarray(out["x"]).ravel()
+        multipliers = np.r_[np.asarray(out["lam_g"]).ravel(), np.asarray(out["lam_x"]).ravel()[-1]]
+        w = x[:-1]
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(multipliers))):
+            return None, multipliers, "fallback"
+        if solver.function.stats()["success"]:
+            return w, multipliers, "converged"
+        z = self._sign * self._logit(problem["x0"] + problem["a"] @ w)
+        if z > self._z_clip and np.linalg.norm(problem["g0"] + w.reshape(3, -1) @ problem["cs"]) <= self.delta_pos:
+            return w, multipliers, "accepted"
+        return None, multipliers, "fallback"
+
+    def _outcome(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> tuple[float, float]:
+        """ε̂ and terminal distance (mm) of the movement emitted under ``state`` if the human follows ``predicted``."""
+        human = np.concatenate([self.human[:t], predicted[t:]])
+        future = human[t:]
+        if state["end"] > 0:
+            future = future + state["plan"][t:]
+            future[max(state["end"] - t, 0) :] = 0.0
+        elif math.isfinite(state["table_c"]):
+            c = state["table_c"]
+            future = c * future + (1.0 - c) * self.library.velocity[int(self.reference.value), t : len(human)]
+        altered = np.concatenate([self.altered[:t], future])
+        distance = float(np.linalg.norm(self.dt * (altered - human).sum(axis=0)))
+        length = movement_length(altered, self.rest_speed)
+        if length == 0:
+            return math.nan, distance
+        return _sigmoid(self._logit((resampling_matrix(length) @ altered[:length]).T.reshape(-1))), distance
+
+
+def _sigmoid(z: float) -> float:
+    e = math.exp(-abs(z))
+    return 1.0 / (1.0 + e) if z >= 0 else e / (1.0 + e)
+
+
+def _equivalent_c(v_a: np.ndarray, v_h: np.ndarray, v_r: np.ndarray) -> float:
+    """The ``c`` whose blend ``c·v_h + (1 − c)·v_r`` is closest to ``v_a``, clipped to [0, 1] (1 if undefined)."""
+    if not (np.all(np.isfinite(v_a)) and np.all(np.isfinite(v_h)) and np.all(np.isfinite(v_r))):
+        return 1.0
+    span = v_h - v_r
+    scale = float(np.abs(span).max())
+    if not scale > 1e-6:
+        return 1.0
+    span = span / scale  # no overflow for huge (finite) inputs
+    return min(max(float(((v_a - v_r) / scale) @ span) / float(span @ span), 0.0), 1.0)
