@@ -28,6 +28,7 @@ from cogblocks.sim.params import finite_array, finite_number
 
 __all__ = [
     "ACTIONS",
+    "HOLD_ACTION",
     "OMEGA_L3_LIMIT",
     "L3Context",
     "L3Policy",
@@ -40,6 +41,8 @@ PHASE = Signal(unit="rad", wrapped=True)
 
 #: Frequency increments (rad/s) an L3 policy chooses from (footnote 3 of the deliverable).
 ACTIONS = np.round(np.arange(-0.5, 0.51, 0.1), 1)
+#: Index of the action that keeps the frequency unchanged.
+HOLD_ACTION = int(np.flatnonzero(ACTIONS == 0.0)[0])
 #: Bound on the virtual oscillator's frequency, rad/s.
 OMEGA_L3_LIMIT = 15.0
 
@@ -52,12 +55,15 @@ def l3_observation(theta_l3: Any, theta_others: np.ndarray, omega_prev: Any) -> 
     ``1 − |q|`` how spread they are. Broadcasts over leading axes.
     """
     offsets = np.asarray(theta_l3, dtype=float)[..., None] - theta_others
-    q_re = np.cos(offsets).mean(axis=-1)
-    q_im = np.sin(offsets).mean(axis=-1)
-    return np.stack(
-        np.broadcast_arrays(np.arctan2(q_im, q_re), 1.0 - np.hypot(q_re, q_im), np.asarray(omega_prev, dtype=float)),
-        axis=-1,
-    )
+    # sum / n rather than mean(): the same value without mean()'s per-call overhead, which dominates here
+    n = offsets.shape[-1]
+    q_re = np.cos(offsets).sum(axis=-1) / n
+    q_im = np.sin(offsets).sum(axis=-1) / n
+    obs = np.empty(q_re.shape + (3,))
+    obs[..., 0] = np.arctan2(q_im, q_re)
+    obs[..., 1] = 1.0 - np.hypot(q_re, q_im)
+    obs[..., 2] = omega_prev
+    return obs
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,7 +19,7 @@ from cogblocks.blocks import (
     Select,
     Substitute,
 )
-from cogblocks.blocks.motion import MeanPhaseMotion
+from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.sim import Block, Diagram, Simulator
 
@@ -69,8 +69,33 @@ def _mean_motion(group: SyncGroup) -> Block:
     return MeanPhaseMotion(group.n, group.assisted)
 
 
+def _l3_motion(group: SyncGroup, policy: Any) -> Block:
+    return MotionComputer(
+        policy, n=group.n, assisted=group.assisted, gain=group.gain, omega_init=float(np.mean(group.omega))
+    )
+
+
+def _dqn_motion(group: SyncGroup) -> Block:
+    from cogblocks.training.l3_policies import DQNPolicy
+
+    return _l3_motion(group, DQNPolicy.default())
+
+
+def _lookahead_motion(group: SyncGroup) -> Block:
+    from cogblocks.training.l3_policies import LookaheadPolicy
+
+    return _l3_motion(group, LookaheadPolicy.for_group(group))
+
+
 #: Motion computers available by name: each builds a fresh block for a group.
-MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {"mean": _mean_motion}
+#: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --seed 0``),
+#: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
+#: the circular mean of the others' phases (no training, no model).
+MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
+    "dqn": _dqn_motion,
+    "lookahead": _lookahead_motion,
+    "mean": _mean_motion,
+}
 
 
 def _group_of(group: int | SyncGroup) -> SyncGroup:
