@@ -1,0 +1,362 @@
+"""Every public block constructor refuses invalid parameters with a ValueError that says what is wrong.
+
+One table, ``CASES``: for every parameter of every public block at least one invalid value, and what
+the message must contain: the block's class name, the parameter, the value given and what is allowed
+(the form of ``cogblocks.sim.params``: "Block: name must be <allowed>, got <value>"). Parameters that
+a composite block documents as passed through to an inner block ("As in Algorithm1Phase", "See
+PeriodEstimator") may name that inner block instead.
+
+``test_every_parameter_is_covered`` fails when a public block has a parameter without a case, so a
+new block or parameter cannot slip through. Known defects are strict xfails (``reason`` says what
+is wrong), so that fixing the block flags the entry for removal.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import math
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pytest
+
+import cogblocks.blocks as blocks_pkg
+from cogblocks.sim import Block, Signal
+
+OPTIONAL_MODULES = ("cogblocks.blocks.encoding", "cogblocks.blocks.buffer", "cogblocks.blocks.rl")
+
+
+def public_blocks() -> dict[str, type]:
+    """Public block classes by qualified name ("encoding.PositionComputer" for the one not re-exported)."""
+    found: dict[str, type] = {}
+    for name in blocks_pkg.__all__:
+        obj = getattr(blocks_pkg, name)
+        if inspect.isclass(obj) and issubclass(obj, Block):
+            found[name] = obj
+    for module in OPTIONAL_MODULES:
+        try:
+            mod = importlib.import_module(module)
+        except ImportError:  # pragma: no cover - being written
+            continue
+        for name in getattr(mod, "__all__", ()):
+            obj = getattr(mod, name)
+            if inspect.isclass(obj) and issubclass(obj, Block) and obj not in found.values():
+                found[f"{module.rsplit('.', 1)[-1]}.{name}"] = obj
+    return found
+
+
+def block(name: str) -> type:
+    return public_blocks()[name]
+
+
+# -- valid arguments the cases start from (built lazily: some need torch or a movement library) -------------
+
+
+def _tiny_library():
+    from cogblocks.data.reach import generate_reach_library
+
+    return generate_reach_library(1, n_subjects=2, n_fear=3, n_no_fear=3)
+
+
+def _tiny_network():
+    from cogblocks.blocks.encoding import EncoderNet
+
+    return EncoderNet(hidden=4).double().eval()
+
+
+def _tiny_table():
+    from cogblocks.blocks.encoding import SolutionTable
+
+    return SolutionTable(np.ones((2, 2)), np.array([0, 1]), np.array([2, 3]), 1, np.linspace(0, 1, 5))
+
+
+class _Policy:
+    def act(self, context) -> int:
+        return 5
+
+
+def _discrete_system(dt=0.01):
+    import control
+
+    return control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], dt)
+
+
+CURVE = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+
+BASES: dict[str, Callable[[], dict[str, Any]]] = {
+    "Constant": lambda: {"value": 1.0},
+    "Gain": lambda: {"k": 2.0},
+    "Saturation": lambda: {"lower": -1.0, "upper": 1.0},
+    "LowPass": lambda: {"cutoff": 5.0},
+    "Function": lambda: {"fn": abs, "inputs": {"u": Signal()}, "outputs": Signal()},
+    "Playback": lambda: {"data": [1.0, 2.0]},
+    "Mux": lambda: {"n": 2},
+    "Demux": lambda: {"n": 2},
+    "Select": lambda: {"index": 0},
+    "Substitute": lambda: {"index": 0},
+    "DiscreteLTI": lambda: {"sys": _discrete_system()},
+    "KuramotoGroup": lambda: {"omega": [1.0, 2.0], "gain": 1.0},
+    "KuramotoOscillator": lambda: {"omega": 1.0, "gain": 1.0, "n_neighbours": 2},
+    "ArmPositions": lambda: {"n": 2},
+    "MeanPhaseMotion": lambda: {"n": 3, "assisted": 0},
+    "MotionComputer": lambda: {"policy": _Policy(), "n": 3, "assisted": 0, "gain": 1.0, "omega_init": 0.0},
+    "ReferenceCustomizer": lambda: {"reference": CURVE},
+    "PhaseEstimator3D": lambda: {"reference": CURVE},
+    "PositionComputer": lambda: {"reference": CURVE},
+    "EncoderClassifier": lambda: {"network": _tiny_network()},
+    "LibraryProjector": lambda: {"library": _tiny_library()},
+    "VelocityBlender": lambda: {"table": _tiny_table()},
+}
+
+# Parameters documented as passed through to an inner block, whose message may name that block.
+PASS_THROUGH: dict[str, dict[str, str]] = {
+    "PhaseEstimator": dict.fromkeys(
+        ("unit", "centre_periods", "accel_window", "min_dropout", "holdoff", "max_period"), "Algorithm1Phase"
+    ),
+    "PhaseEstimator3D": dict.fromkeys(
+        ("h", "capacity", "start_speed", "match_ratio", "min_period_fraction"), "PeriodEstimator"
+    )
+    | dict.fromkeys(("search", "window", "jump_factor", "distance_floor", "velocity_weight"), "PhaseComputer"),
+    "LibraryProjector": dict.fromkeys(("metric", "dtype"), "PrefixProjection"),
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    block: str  # key of public_blocks()
+    param: str
+    value: Any
+    allowed: str  # a fragment of the message saying what is allowed
+    given: str | None = None  # the fragment showing the value, if not repr(value) (a shape, a type name)
+    defect: str | None = None  # known defect: the case is a strict xfail with this reason
+    extra: tuple = ()  # (name, value) pairs that replace the block's base arguments for this case
+
+
+def case(block, param, value, allowed, *, given=None, defect=None, **extra) -> Case:
+    return Case(block, param, value, allowed, given, defect, tuple(extra.items()))
+
+
+NOT_CHECKED = "not checked: the value is accepted"
+SIGNAL_MESSAGE = "the Signal spec raises 'unit/wrapped/shape must be ...' without naming the block"
+
+CASES = [
+    # core
+    case("Constant", "value", [1.0, math.nan], "finite"),
+    case("Constant", "unit", 5, "string", defect=SIGNAL_MESSAGE),
+    case("Constant", "wrapped", "yes", "bool", defect=SIGNAL_MESSAGE),
+    case("Gain", "k", [1.0, math.inf], "finite"),
+    case("Gain", "matrix", "yes", "True or False", defect=f"{NOT_CHECKED} as True", k=np.eye(2)),
+    case("Sum", "signs", "+*", "'+' and '-'"),
+    case("UnitDelay", "initial", math.nan, "finite"),
+    case("UnitDelay", "shape", -1, "non-negative", defect=SIGNAL_MESSAGE),
+    case("UnitDelay", "unit", 5, "string", defect=f"{NOT_CHECKED} by the constructor (left to compile time)"),
+    case("UnitDelay", "wrapped", "yes", "bool", defect=f"{NOT_CHECKED} by the constructor (left to compile time)"),
+    case("Integrator", "initial", math.inf, "finite"),
+    case("Integrator", "shape", -1, "non-negative", defect=SIGNAL_MESSAGE),
+    case("Integrator", "unit", 5, "string", defect=f"{NOT_CHECKED} by the constructor (left to compile time)"),
+    case("Saturation", "lower", math.nan, "finite number"),
+    case("Saturation", "upper", -2.0, "[-1.0, inf)"),
+    case("LowPass", "cutoff", 0.0, "(0.0, inf)"),
+    case("LowPass", "order", 0, "integer >= 1"),
+    case("LowPass", "init", "last", "one of ['first', 'zero']"),
+    case("Function", "fn", 5, "callable"),
+    case("Function", "inputs", 5, "mapping", defect="AttributeError: 'int' object has no attribute 'items'"),
+    case("Function", "outputs", 5, "Signal", defect="TypeError: 'int' object is not iterable (from dict(outputs))"),
+    case("Function", "feedthrough", "yes", "True or False", defect=NOT_CHECKED),
+    case("Playback", "data", [], "at least one row", given="(0,)"),
+    case("Playback", "unit", 5, "string", defect=SIGNAL_MESSAGE),
+    case("Playback", "wrapped", "yes", "bool", defect=SIGNAL_MESSAGE),
+    case("Playback", "at_end", "loop", "one of ['hold', 'repeat', 'zero', 'error']"),
+    case("Mux", "n", 0, "integer >= 1"),
+    case("Demux", "n", 0, "integer >= 1"),
+    case("Demux", "unit", 5, "string", defect=SIGNAL_MESSAGE),
+    case("Demux", "wrapped", "yes", "bool", defect=SIGNAL_MESSAGE),
+    case("Select", "index", -1, "integer >= 0"),
+    case("Substitute", "index", 1.5, "integer >= 0"),
+    case("DiscreteLTI", "sys", 5, "StateSpace or TransferFunction", given="int"),
+    case("DiscreteLTI", "x0", [1.0, 2.0], "shape (1)", given="(2,)"),
+    case("DiscreteLTI", "unit_in", 5, "string", defect=SIGNAL_MESSAGE),
+    case("DiscreteLTI", "unit_out", 5, "string", defect=SIGNAL_MESSAGE),
+    # Social Connectedness
+    case("KuramotoGroup", "omega", [1.0, math.nan], "finite"),
+    case("KuramotoGroup", "gain", -1.0, "[0.0, inf)"),
+    case("KuramotoGroup", "adjacency", "full", "'ring' or an 2x2 matrix"),
+    case("KuramotoGroup", "assisted", 5, "[0, 1] or None"),
+    case("KuramotoGroup", "theta0", [math.nan], "finite"),
+    case(
+        "KuramotoGroup",
+        "theta0",
+        [0.0, 0.0, 0.0],
+        "shape",
+        given="(3,)",
+        defect="NumPy's broadcast error ('operands could not be broadcast ...') names neither block nor parameter",
+    ),
+    case("KuramotoOscillator", "omega", math.nan, "finite number"),
+    case("KuramotoOscillator", "gain", -1.0, "[0.0, inf)"),
+    case("KuramotoOscillator", "n_neighbours", -1, "integer >= 0"),
+    case("KuramotoOscillator", "theta0", math.inf, "finite number"),
+    case("ArmPositions", "n", 0, "integer >= 1"),
+    case("ArmPositions", "amplitude", -1.0, "> 0"),
+    case("ArmPositions", "offset", math.nan, "finite"),
+    case("ArmPositions", "noise_std", -1.0, "[0.0, inf)"),
+    case("ArmPositions", "seed", "abc", "int", defect="TypeError from numpy.random.default_rng, not a ValueError"),
+    case("Blender", "lam_min", 0.0, "(0.0, inf)"),
+    case("Blender", "lam_max", 0.1, "finite number in ["),
+    case("Blender", "e_max", -1.0, "(0.0, inf)"),
+    case("Blender", "kappa_plus", 0.0, "(0.0, inf)"),
+    case("Blender", "kappa_minus", math.nan, "(0.0, inf)"),
+    case("Blender", "saturation", "soft", "one of ['hard', 'smooth']"),
+    case("Blender", "psi", "gauss", "one of ['triangular', 'bump']"),
+    case("MeanPhaseMotion", "n", -1, "integer >= 1", defect=SIGNAL_MESSAGE + " (n is not checked)"),
+    case("MeanPhaseMotion", "assisted", 5, "[0, 2]"),
+    case("MeanPhaseMotion", "assisted", 1.5, "[0, 2]", defect=f"{NOT_CHECKED}: a float index joins the mean"),
+    case("MotionComputer", "policy", 5, "act(context)"),
+    case("MotionComputer", "n", -1, "integer >= 1", defect=SIGNAL_MESSAGE + " (n is not checked)"),
+    case("MotionComputer", "assisted", 7, "[0, 2]"),
+    case("MotionComputer", "gain", -1.0, "[0.0, inf)"),
+    case("MotionComputer", "omega_init", 20.0, "[-15.0, 15.0]"),
+    case("MotionComputer", "adjacency", [[1.0]], "shape (3, 3)", given="(1, 1)"),
+    # sensor streams and L1
+    case("KalmanEstimator", "model", "cj", "one of ['cv', 'ca']"),
+    case("KalmanEstimator", "process_noise", 0.0, "(0.0, inf)"),
+    case("KalmanEstimator", "measurement_noise", -1.0, "(0.0, inf)"),
+    case("KalmanEstimator", "dims", 0, "integer >= 1"),
+    case("KalmanEstimator", "unit", "", "non-empty string"),
+    case("KalmanEstimator", "gate", 1.0, "(0.0, 1.0)"),
+    case("KalmanEstimator", "max_rejections", 0, "integer >= 1"),
+    case("KalmanEstimator", "freeze_frames", 0, "integer >= 1"),
+    case("L1", "delay", -0.1, "[0.0, inf)"),
+    case(
+        "L1",
+        "smoothing",
+        "yes",
+        "True or False",
+        defect="the message names KinematicPredictor, which L1's user never met",
+    ),
+    case("L1", "estimator", 5, "KalmanEstimator", given="int"),
+    case("KinematicPredictor", "horizon", -1.0, "[0.0, inf)"),
+    case("KinematicPredictor", "smoothing", "yes", "True or False"),
+    case("KinematicPredictor", "unit", 5, "string", defect=SIGNAL_MESSAGE),
+    # 1D phase
+    case("Algorithm1Phase", "unit", "", "non-empty string"),
+    case("Algorithm1Phase", "centre_periods", 0, "integer >= 1"),
+    case("Algorithm1Phase", "accel_window", -1.0, "[0.0, inf)"),
+    case("Algorithm1Phase", "min_dropout", -1.0, "[0.0, inf)"),
+    case("Algorithm1Phase", "holdoff", math.nan, "[0.0, inf)"),
+    case("Algorithm1Phase", "max_period", 0.0, "(0.0, inf)"),
+    case("Algorithm1Phase", "cutoff", -3.0, "(0.0, inf)"),
+    case("Algorithm1Phase", "order", 0, "integer >= 1"),
+    case("PhaseEstimator", "cutoff", 0.0, "(0.0, inf)"),
+    case("PhaseEstimator", "order", 0, "integer >= 1"),
+    case("PhaseEstimator", "unit", "", "non-empty string"),
+    case("PhaseEstimator", "centre_periods", 0, "integer >= 1"),
+    case("PhaseEstimator", "accel_window", -1.0, "[0.0, inf)"),
+    case("PhaseEstimator", "min_dropout", -1.0, "[0.0, inf)"),
+    case("PhaseEstimator", "holdoff", -1.0, "[0.0, inf)"),
+    case("PhaseEstimator", "max_period", 0.0, "(0.0, inf)"),
+    case("PhaseEstimator", "compensate", "yes", "True or False"),
+    # 3D phase
+    case("PeriodEstimator", "h", 1, "integer >= 2"),
+    case("PeriodEstimator", "capacity", 5, "integer >= 23"),
+    case("PeriodEstimator", "start_speed", -1.0, "[0.0, inf)"),
+    case("PeriodEstimator", "match_ratio", 0.0, "(0.0, 1.0]"),
+    case("PeriodEstimator", "min_period_fraction", 1.0, "[0.0, 1.0)"),
+    case("ReferenceCustomizer", "reference", [[0.0, 0.0]], "shape (any, 3)", given="(1, 2)"),
+    case("PhaseComputer", "search", "fast", "one of ['warm', 'full']"),
+    case("PhaseComputer", "window", 0, "integer >= 1"),
+    case("PhaseComputer", "jump_factor", 1.0, "(1.0, inf)"),
+    case("PhaseComputer", "distance_floor", -1.0, "[0.0, inf)"),
+    case("PhaseComputer", "velocity_weight", -0.01, "[0.0, inf)"),
+    case(
+        "PhaseEstimator3D",
+        "reference",
+        [[0.0, 0.0]],
+        "shape (any, 3)",
+        given="(1, 2)",
+        defect="the message names ReferenceCustomizer, though reference is PhaseEstimator3D's own parameter",
+    ),
+    case("PhaseEstimator3D", "h", 1, "integer >= 2"),
+    case("PhaseEstimator3D", "capacity", 5, "integer >= 23"),
+    case("PhaseEstimator3D", "start_speed", -1.0, "[0.0, inf)"),
+    case("PhaseEstimator3D", "match_ratio", 2.0, "(0.0, 1.0]"),
+    case("PhaseEstimator3D", "min_period_fraction", -0.5, "[0.0, 1.0)"),
+    case("PhaseEstimator3D", "search", "fast", "one of ['warm', 'full']"),
+    case("PhaseEstimator3D", "window", 0, "integer >= 1"),
+    case("PhaseEstimator3D", "jump_factor", 0.5, "(1.0, inf)"),
+    case("PhaseEstimator3D", "distance_floor", -1.0, "[0.0, inf)"),
+    case("PhaseEstimator3D", "velocity_weight", -1.0, "[0.0, inf)"),
+    case("PositionComputer", "reference", [[0.0, 0.0]], "shape (any, 3)", given="(1, 2)"),
+    case("PositionComputer", "noise_std", -1.0, "[0.0, inf)"),
+    case("PositionComputer", "seed", "abc", "int", defect="TypeError from numpy.random.default_rng, not a ValueError"),
+    # PoP of Amplification
+    case("Buffer", "capacity", 0, "integer >= 1"),
+    case("EncoderClassifier", "network", 5, "EncoderNet", given="int"),
+    case("EncoderClassifier", "rest_speed", -1.0, "[0.0, inf)"),
+    case("LibraryProjector", "library", 5, "ReachLibrary", given="int"),
+    case("LibraryProjector", "e_des", 2, "one of [0, 1]"),
+    case("LibraryProjector", "interval", 0, "integer >= 1"),
+    case("LibraryProjector", "metric", "max", "one of ['mean', 'l2']"),
+    case("LibraryProjector", "dtype", "int8", "one of ['float32', 'float64']"),
+    case("LibraryProjector", "candidates", [True], "shape (6,)", given="(1,)"),
+    case("VelocityBlender", "table", 5, "SolutionTable", given="int"),
+    case("RLCorrector", "network", 5, "CorrectorNet", given="int"),
+    case("RLCorrector", "gain", 0.0, "(0.0, inf)"),
+    case("RLCorrector", "interval", 0, "integer >= 1"),
+]
+
+
+def required_parameters(cls: type) -> set[str]:
+    """The constructor's parameters that need a case: all but ``period`` and ``*args``/``**kwargs``."""
+    params = inspect.signature(cls.__init__).parameters.values()
+    kinds = (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD)
+    return {p.name for p in params if p.name not in ("self", "period") and p.kind not in kinds}
+
+
+def test_every_parameter_is_covered():
+    covered = {(c.block, c.param) for c in CASES}
+    missing = [
+        f"{name}.{param}"
+        for name, cls in sorted(public_blocks().items())
+        for param in sorted(required_parameters(cls) - set(PASS_THROUGH.get(name, {})))
+        if (name, param) not in covered
+    ]
+    assert not missing, f"constructor parameters without an invalid-value case in CASES: {missing}"
+
+
+def test_cases_name_real_parameters():
+    blocks = public_blocks()
+    wrong = [
+        f"{c.block}.{c.param}"
+        for c in CASES
+        if c.block in blocks and c.param not in required_parameters(blocks[c.block])
+    ]
+    assert not wrong, f"CASES name parameters the blocks do not have: {wrong}"
+
+
+def _params():
+    blocks = public_blocks()
+    for c in CASES:
+        marks = [pytest.mark.xfail(strict=True, reason=c.defect)] if c.defect else []
+        if c.block not in blocks:  # a module being written
+            marks = [pytest.mark.skip(reason=f"{c.block} is not public (yet)")]
+        yield pytest.param(c, id=f"{c.block}.{c.param}={c.value!r}"[:80], marks=marks)
+
+
+@pytest.mark.parametrize("c", list(_params()))
+def test_invalid_parameter_is_refused_with_a_clear_message(c: Case):
+    cls = block(c.block)
+    kwargs = BASES.get(c.block, dict)() | dict(c.extra)
+    kwargs[c.param] = c.value
+    with pytest.raises(ValueError) as info:
+        cls(**kwargs)
+    message = str(info.value)
+    owners = {cls.__name__, PASS_THROUGH.get(c.block, {}).get(c.param, cls.__name__)}
+    assert any(re.match(rf"{owner}\b", message) for owner in owners), f"names no block of {owners}: {message}"
+    assert re.search(rf"\b{c.param}\b", message), f"does not name the parameter {c.param!r}: {message}"
+    given = repr(c.value) if c.given is None else c.given
+    assert given in message, f"does not show the value given ({given}): {message}"
+    assert c.allowed in message, f"does not say what is allowed ({c.allowed}): {message}"
