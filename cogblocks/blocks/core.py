@@ -230,6 +230,11 @@ class Integrator(_Memory):
         Initial state.
     shape, unit : optional
         Spec of the output, when it cannot be inferred from the input.
+
+    Notes
+    -----
+    Bad data policy: a sample with a non-finite element is skipped (the state
+    holds), so one NaN never poisons the integral.
     """
 
     def __init__(
@@ -243,7 +248,9 @@ class Integrator(_Memory):
         super().__init__(initial, shape, unit, False, period, {"unit": _integrated_unit})
 
     def update(self, k: int) -> None:
-        self.x += self.dt * self.u.value
+        u = self.u.value
+        if np.isfinite(u).all():
+            self.x += self.dt * u
 
 
 class Saturation(Block):
@@ -575,6 +582,12 @@ class DiscreteLTI(Block):
         Initial state (zeros by default).
     unit_in, unit_out : str
         Units of the ports.
+
+    Notes
+    -----
+    Bad data policy: a sample with a non-finite element is skipped: the output
+    of that tick and the next state are computed with the input held at its
+    last finite value, so one NaN never poisons the state.
     """
 
     def __init__(
@@ -604,16 +617,22 @@ class DiscreteLTI(Block):
         self.add_input("u", shape=() if m == 1 else (m,), unit=unit_in, feedthrough=bool(np.any(self.D)))
         self.add_output("y", shape=() if p == 1 else (p,), unit=unit_out)
         self.add_state("x", x0)
+        self.add_state("u_last", np.zeros(m))
 
     def setup(self) -> None:
         sys_dt = self.sys.dt
         if sys_dt is not True and abs(float(sys_dt) - self.dt) > 1e-12:
             raise self._fail(f"the system's dt {sys_dt} s differs from the block's step {self.dt} s")
 
-    def output(self, k: int) -> None:
+    def _input(self) -> np.ndarray:
         u = self.u.value.reshape(-1)
-        y = self.C @ self.x + self.D @ u
+        return u if np.isfinite(u).all() else self.u_last
+
+    def output(self, k: int) -> None:
+        y = self.C @ self.x + self.D @ self._input()
         self.y.value[...] = y[0] if self._scalar_out else y
 
     def update(self, k: int) -> None:
-        self.x = self.A @ self.x + self.B @ self.u.value.reshape(-1)
+        u = self._input()
+        self.x = self.A @ self.x + self.B @ u
+        self.u_last = u.copy()

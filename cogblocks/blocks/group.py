@@ -56,6 +56,12 @@ class KuramotoGroup(Block):
         0-based index of the assisted participant, which adds the ``theta_l2`` input.
     theta0 : array_like
         Initial phases (0 by default, as in the deliverable).
+
+    Notes
+    -----
+    Bad data policy: a non-finite frequency or θ_L2 is replaced by its last
+    finite value (the natural frequency, or the participant's own phase,
+    before any), so the phases stay finite.
     """
 
     def __init__(
@@ -93,6 +99,8 @@ class KuramotoGroup(Block):
             self.add_input("theta_l2", PHASE, feedthrough=False)
         self.add_output("theta", PHASE.with_(shape=(n,)), initial=np.mod(theta0, TWO_PI))
         self.add_state("phase", np.mod(theta0, TWO_PI).astype(float))
+        self.add_state("omega_last", self.omega0.copy())
+        self.add_state("theta_l2_last", float("nan"))
         self._seen = np.zeros(n)
         self._diff = np.zeros((n, n))
 
@@ -103,14 +111,25 @@ class KuramotoGroup(Block):
         seen = self._seen
         seen[...] = self.phase
         if self.assisted is not None:
-            seen[self.assisted] = self.theta_l2.value
+            theta_l2 = float(self.theta_l2.value)
+            if math.isfinite(theta_l2):
+                self.theta_l2_last = theta_l2
+            elif math.isfinite(self.theta_l2_last):
+                theta_l2 = self.theta_l2_last
+            else:
+                theta_l2 = self.phase[self.assisted]
+            seen[self.assisted] = theta_l2
+        omega = self.omega.value
+        if not np.isfinite(omega).all():
+            omega = np.where(np.isfinite(omega), omega, self.omega_last)
+        self.omega_last[...] = omega
         d = self._diff
         np.subtract(seen[None, :], seen[:, None], out=d)
         np.sin(d, out=d)
         d *= self.adjacency
         rate = d.sum(axis=1)
         rate *= self.gain
-        rate += self.omega.value
+        rate += omega
         rate *= self.dt
         self.phase += rate
         np.mod(self.phase, TWO_PI, out=self.phase)
@@ -124,6 +143,11 @@ class KuramotoOscillator(Block):
     block per participant (each with its own rate or model).
 
     Ports: inputs ``theta_0 … theta_{n-1}`` (rad, not feedthrough), output ``theta``.
+
+    Notes
+    -----
+    Bad data policy: a non-finite neighbour phase is left out of the coupling
+    for that tick.
     """
 
     def __init__(
@@ -151,7 +175,9 @@ class KuramotoOscillator(Block):
         phase = self.phase
         coupling = 0.0
         for port in self._neighbours:
-            coupling += math.sin(float(port.value) - phase)
+            other = float(port.value)
+            if math.isfinite(other):
+                coupling += math.sin(other - phase)
         self.phase = wrap_angle(phase + self.dt * (self.omega + self.gain * coupling))
 
 
@@ -178,14 +204,11 @@ class OrderParameter(Block):
 
     def output(self, k: int) -> None:
         theta = self.theta.value
-        c = np.cos(theta).sum()
-        s = np.sin(theta).sum()
-        if math.isfinite(c) and math.isfinite(s):
-            self.r.value[...] = math.hypot(c, s) / self._n
-            return
-        ok = np.isfinite(theta)
-        if ok.any():
-            self.r.value[...] = abs(np.exp(1j * theta[ok]).mean())
+        if not np.isfinite(theta).all():
+            theta = theta[np.isfinite(theta)]
+            if theta.size == 0:
+                return
+        self.r.value[...] = math.hypot(np.cos(theta).sum(), np.sin(theta).sum()) / theta.size
 
 
 class ArmPositions(Block):

@@ -143,8 +143,10 @@ class MeanPhaseMotion(_MotionPorts):
 
     def output(self, k: int) -> None:
         phases = self.theta.value[self.others]
+        if not np.isfinite(phases).all():
+            phases = phases[np.isfinite(phases)]
         c, s = np.cos(phases).sum(), np.sin(phases).sum()
-        if math.isfinite(c) and math.isfinite(s) and (c or s):
+        if c or s:
             self.theta_ref.value[...] = wrap_angle(math.atan2(s, c))
 
 

@@ -314,10 +314,20 @@ class CompiledDiagram:
                 arr = self._external[name]
             except KeyError:
                 raise KeyError(f"the diagram has no input {name!r}; its inputs are {list(self._external)}") from None
+            given = np.asarray(value)
+            if given.shape != arr.shape:
+                # no silent broadcasting: a scalar for a vector is almost always a wiring mistake
+                raise ValueError(f"input {name!r} expects shape {arr.shape}, got {given.shape}")
+            if arr.dtype.kind in "iub" and given.dtype.kind not in "iub":
+                if given.dtype.kind not in "f" or not np.all(np.isfinite(given)) or np.any(given != np.round(given)):
+                    raise ValueError(f"input {name!r} expects {arr.dtype} values, got {value!r}")
+                info = np.iinfo(arr.dtype) if arr.dtype.kind in "iu" else None
+                if info is not None and (np.any(given < info.min) or np.any(given > info.max)):
+                    raise ValueError(f"input {name!r} expects {arr.dtype} values, got {value!r} (out of range)")
             try:
-                arr[...] = value
+                arr[...] = given
             except (ValueError, TypeError) as exc:
-                raise ValueError(f"input {name!r} expects shape {arr.shape}, got {np.shape(value)}") from exc
+                raise ValueError(f"input {name!r} expects {arr.dtype} values of shape {arr.shape}, got {value!r}") from exc
 
     def step(self, **inputs: Any) -> dict[str, Any]:
         """Run one tick with the given top-level inputs; return the top-level outputs.

@@ -956,23 +956,12 @@ VIOLATIONS: dict[tuple[type | None, str], str] = {
     (Gain, "u"): f"{SILENT}, yet NaN/inf in u come out of y (document that NaN passes, or hold)",
     (Sum, "*"): f"{SILENT}, yet a NaN/inf input comes out of y",
     (UnitDelay, "u"): f"{SILENT}, yet a NaN sample comes out one tick later",
-    (Integrator, "u"): f"{SILENT}; one NaN sample poisons the state: y is NaN for ever after",
     (Mux, "*"): f"{SILENT}, yet NaN inputs come out of y",
     (Demux, "u"): f"{SILENT}, yet NaN elements come out",
     (Select, "u"): f"{SILENT}, yet a NaN element comes out",
     (Substitute, "u"): f"{SILENT}, yet NaN elements of u come out",
     (Substitute, "v"): f"{SILENT}, yet a NaN v comes out",
-    (DiscreteLTI, "u"): f"{SILENT}; one NaN sample poisons the state x: y is NaN for ever after",
-    (KuramotoGroup, "omega"): f"{SILENT}; one NaN frequency makes that phase NaN for ever (wrapped NaN)",
-    (KuramotoGroup, "theta_l2"): f"{SILENT}; a non-finite θ_L2 makes every phase NaN for ever; ±inf also "
-    f"raises a {WARNS} 'invalid value encountered in subtract'",
-    (KuramotoOscillator, "*"): f"{SILENT}; a ±inf neighbour phase raises ValueError 'math domain error' from "
-    "math.sin, a NaN one makes the phase NaN for ever",
-    (OrderParameter, "theta"): f"the policy holds, but a ±inf phase raises a {WARNS} 'invalid value encountered "
-    "in cos': np.cos runs on the phases before the non-finite ones are left out",
     (ArmPositions, "theta"): f"{SILENT}, yet a NaN phase gives a NaN position",
-    (MeanPhaseMotion, "theta"): f"the policy holds, but a ±inf phase raises a {WARNS} 'invalid value "
-    "encountered in cos' (np.cos before leaving the non-finite phases out)",
     (KalmanEstimator, "p"): f"a 1e300 sample raises a {WARNS} 'overflow encountered in matmul' in the "
     "innovation/covariance (the estimates stay finite)",
     (L1, "p"): f"a 1e300 sample raises a {WARNS} 'overflow encountered in matmul' (its KalmanEstimator)",
@@ -1092,44 +1081,36 @@ ENGINE = "engine: CompiledDiagram.set_inputs writes arr[...] = value"
             1.0,
             r"shape \(3,\)",
             id="scalar-into-vector",
-            marks=pytest.mark.xfail(strict=True, reason=f"{ENGINE}: a scalar is broadcast to every element"),
         ),
         pytest.param(
             Signal(shape=(3,)),
             np.ones((1, 3)),
             r"shape \(3,\)",
             id="row-into-vector",
-            marks=pytest.mark.xfail(strict=True, reason=f"{ENGINE}: a (1, 3) sample is accepted for (3,)"),
         ),
         pytest.param(
             Signal(dtype=np.int64),
             math.inf,
             "int64",
             id="inf-into-counter",
-            marks=pytest.mark.xfail(strict=True, reason=f"{ENGINE}: OverflowError escapes (not caught)"),
         ),
         pytest.param(
             Signal(dtype=np.int64),
             1e300,
             "int64",
             id="huge-into-counter",
-            marks=pytest.mark.xfail(strict=True, reason=f"{ENGINE}: OverflowError escapes (not caught)"),
         ),
         pytest.param(
             Signal(dtype=np.int64),
             math.nan,
             "int64",
             id="nan-into-counter",
-            marks=pytest.mark.xfail(
-                strict=True, reason=f"{ENGINE}: the message blames the shape ('expects shape (), got ()')"
-            ),
         ),
         pytest.param(
             Signal(dtype=np.int64),
             2.7,
             "int64",
             id="fraction-into-counter",
-            marks=pytest.mark.xfail(strict=True, reason=f"{ENGINE}: 2.7 is truncated to 2 silently"),
         ),
     ],
 )
