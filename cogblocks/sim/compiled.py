@@ -327,7 +327,9 @@ class CompiledDiagram:
             try:
                 arr[...] = given
             except (ValueError, TypeError) as exc:
-                raise ValueError(f"input {name!r} expects {arr.dtype} values of shape {arr.shape}, got {value!r}") from exc
+                raise ValueError(
+                    f"input {name!r} expects {arr.dtype} values of shape {arr.shape}, got {value!r}"
+                ) from exc
 
     def step(self, **inputs: Any) -> dict[str, Any]:
         """Run one tick with the given top-level inputs; return the top-level outputs.
