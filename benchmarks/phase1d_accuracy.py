@@ -17,10 +17,16 @@ reach a few seconds into a signal that is not a whole number of periods. Errors 
 over every remaining sample of every signal; ``mean`` and ``p95`` (95th percentile) are in
 rad. ``reference`` and ``ratio`` are null.
 
+Front ends: on the data sets with drop-outs (``dropouts``, ``dropouts_nan``) the same seeded
+signals also go through ``PhaseEstimator(front_end="kalman")`` (a constant-acceleration Kalman
+filter with its default noise in place of the low-pass filter and the backward differences).
+Records ``phase1d.front_end.{lowpass,kalman}.<data set>.vs_{hilbert,true}.{mean,p95}``; for the
+Kalman ones ``reference`` is the low-pass figure and ``ratio`` = Kalman / low-pass.
+
 Run: ``python benchmarks/phase1d_accuracy.py [--quick] [--sweep] [--plot PNG]``
 (``--sweep`` adds the low-pass cut-off, lag-compensation, centring and hold-off variants,
 three stress data sets for the cut-off and an error budget; about 5 minutes on one core,
-15 s without it).
+25 s without it).
 """
 
 from __future__ import annotations
@@ -63,6 +69,7 @@ DATASETS = {
     "fast": {"dropout_rate": 4.0, "freq_range": (1.5, 2.0)},  # faster than the PoP's movements
 }
 STRESS = ("fastdrift", "noise3mm", "fast")
+FRONT_END_SETS = ("dropouts", "dropouts_nan")  # where the low-pass and the Kalman front ends are compared
 # error budget (--sweep only): a pure drifting-free sinusoid, then one ingredient of the model at a time
 _PURE = {"noise_std": 0.0, "harmonics": 0.0, "freq_drift": 0.0, "amplitude_drift": 0.0, "offset_drift": 0.0}
 BUDGET = {
@@ -133,6 +140,21 @@ def _records(name: str, errs: dict[str, np.ndarray], **context: Any) -> Iterator
             }
 
 
+def _front_end_records(
+    tag: str, lowpass: dict[str, np.ndarray], kalman: dict[str, np.ndarray], **context: Any
+) -> Iterator[dict[str, Any]]:
+    """The low-pass and the Kalman front end on the same signals; Kalman's reference is the low-pass figure."""
+    for ref in ("hilbert", "true"):
+        for stat, f in (("mean", np.mean), ("p95", lambda e: np.percentile(e, 95))):
+            low = round(float(f(lowpass[ref])), 4)
+            kal = round(float(f(kalman[ref])), 4)
+            base = {"unit": "rad", **context}
+            yield {"name": f"phase1d.front_end.lowpass.{tag}.vs_{ref}.{stat}", "value": low,
+                   "reference": None, "ratio": None, **base}
+            yield {"name": f"phase1d.front_end.kalman.{tag}.vs_{ref}.{stat}", "value": kal,
+                   "reference": low, "ratio": round(kal / low, 3) if low > 0 else None, **base}
+
+
 def run(quick: bool = False, sweep: bool = False) -> Iterator[dict[str, Any]]:
     """Yield the accuracy records of the default estimator (and of the sweep's variants)."""
     n = 4 if quick else 20
@@ -149,6 +171,8 @@ def run(quick: bool = False, sweep: bool = False) -> Iterator[dict[str, Any]]:
                 "name": "phase1d.hilbert_vs_true.mean", "value": round(float(hvt.mean()), 4), "unit": "rad",
                 "reference": None, "ratio": None, **context,
             }
+        if tag in FRONT_END_SETS:
+            yield from _front_end_records(tag, errs, errors(oscs, front_end="kalman"), **context)
         if sweep and tag != "dropouts_nan":
             for variant, params in CUTOFFS if tag in STRESS else SWEEP:
                 yield from _records(f"{variant}.{tag}", errors(oscs, **params), **context, params=params)

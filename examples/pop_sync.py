@@ -7,7 +7,8 @@ from cogblocks.sim import Simulator
 result = run_sync(1)
 print(f"Group 1 without L2: {result['r_without']:.3f}")
 for row in result["results"]:
-    print(f"  {row['policy']:>10}: {row['r_with']:.3f} ({row['change_pct']:+.2f} %), max |θ_L2 − θ_L0| {row['max_dev_rad']:.2f} rad")
+    change, deviation = row["change_pct"], row["max_dev_rad"]
+    print(f"  {row['policy']:>10}: {row['r_with']:.3f} ({change:+.2f} %), max |θ_L2 − θ_L0| {deviation:.2f} rad")
 plot_sync(1, "mean", "pop_sync_group1.png")
 
 # swapping one block of the L2 architecture is one call

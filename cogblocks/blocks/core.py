@@ -75,6 +75,12 @@ class Gain(Block):
         Scalar or element-wise gain; with ``matrix=True`` a 2-D matrix.
     matrix : bool
         Treat ``k`` as a matrix (``y = k @ u``; ``u`` must be a vector).
+
+    Notes
+    -----
+    Bad data policy: stateless and element-wise, so a non-finite input element
+    gives a non-finite output element on the same tick (as in NumPy) and
+    nothing else; blocks with memory downstream decide how to treat it.
     """
 
     def __init__(self, k: Any, *, matrix: bool = False, period: float | None = None) -> None:
@@ -95,10 +101,12 @@ class Gain(Block):
             raise self._fail(f"gain of shape {self.k.shape} does not broadcast to the input shape {shape}")
 
     def output(self, k: int) -> None:
-        if self.matrix:
-            np.matmul(self.k, self.u.value, out=self.y.value)
-        else:
-            np.multiply(self.k, self.u.value, out=self.y.value)
+        # bad samples pass through (documented): no NumPy warning for inf * 0 or inf - inf
+        with np.errstate(invalid="ignore", over="ignore"):
+            if self.matrix:
+                np.matmul(self.k, self.u.value, out=self.y.value)
+            else:
+                np.multiply(self.k, self.u.value, out=self.y.value)
 
 
 class Sum(Block):
@@ -110,6 +118,12 @@ class Sum(Block):
     ----------
     signs : str
         One ``+`` or ``-`` per input, e.g. ``"+-"`` for ``u0 - u1``.
+
+    Notes
+    -----
+    Bad data policy: stateless and element-wise, so a non-finite input element
+    gives a non-finite output element on the same tick (as in NumPy) and
+    nothing else; blocks with memory downstream decide how to treat it.
     """
 
     def __init__(self, signs: str = "++", *, period: float | None = None) -> None:
@@ -126,6 +140,7 @@ class Sum(Block):
             if port.spec.shape != first.shape or port.spec.unit != first.unit:
                 raise self._fail(f"all inputs must share shape and unit; u0 is {first}, {port.name} is {port.spec}")
 
+    @np.errstate(invalid="ignore", over="ignore")  # bad samples pass through (documented), silently
     def output(self, k: int) -> None:
         y = self.y.value
         first, positive = self._terms[0]
@@ -479,7 +494,14 @@ class Probe(Block):
 
 
 class Mux(Block):
-    """Stack ``n`` scalar inputs ``u0 … u{n-1}`` into a vector output ``y`` of shape ``(n,)``."""
+    """Stack ``n`` scalar inputs ``u0 … u{n-1}`` into a vector output ``y`` of shape ``(n,)``.
+
+    Notes
+    -----
+    Bad data policy: stateless and element-wise, so a non-finite input element
+    gives a non-finite output element on the same tick (as in NumPy) and
+    nothing else; blocks with memory downstream decide how to treat it.
+    """
 
     def __init__(self, n: int, *, period: float | None = None) -> None:
         super().__init__(period=period)
@@ -500,7 +522,14 @@ class Mux(Block):
 
 
 class Demux(Block):
-    """Split a vector input ``u`` of shape ``(n,)`` into scalar outputs ``y0 … y{n-1}``."""
+    """Split a vector input ``u`` of shape ``(n,)`` into scalar outputs ``y0 … y{n-1}``.
+
+    Notes
+    -----
+    Bad data policy: stateless and element-wise, so a non-finite input element
+    gives a non-finite output element on the same tick (as in NumPy) and
+    nothing else; blocks with memory downstream decide how to treat it.
+    """
 
     def __init__(
         self, n: int, *, unit: str | None = None, wrapped: bool | None = None, period: float | None = None
@@ -520,6 +549,12 @@ class Select(Block):
     """Pick one element of a vector: ``y = u[index]``.
 
     Ports: input ``u`` (shape (n,)), output ``y`` (scalar, same unit and wrapping).
+
+    Notes
+    -----
+    Bad data policy: stateless and element-wise, so a non-finite input element
+    gives a non-finite output element on the same tick (as in NumPy) and
+    nothing else; blocks with memory downstream decide how to treat it.
     """
 
     def __init__(self, index: int, *, period: float | None = None) -> None:
@@ -543,6 +578,12 @@ class Substitute(Block):
     Ports: inputs ``u`` (shape (n,)) and ``v`` (scalar, same unit), output ``y``
     (spec of ``u``). This is how the L2 avatar's phase takes the assisted
     participant's place in what the group sees.
+
+    Notes
+    -----
+    Bad data policy: stateless and element-wise, so a non-finite input element
+    gives a non-finite output element on the same tick (as in NumPy) and
+    nothing else; blocks with memory downstream decide how to treat it.
     """
 
     def __init__(self, index: int, *, period: float | None = None) -> None:

@@ -230,6 +230,12 @@ class ArmPositions(Block):
         Standard deviation of white measurement noise, mm (>= 0).
     seed : int or numpy.random.Generator, optional
         Seed of the noise (part of the block's state, so snapshots replay it).
+
+    Notes
+    -----
+    Bad data policy: stateless and element-wise, so a non-finite input element
+    gives a non-finite output element on the same tick (as in NumPy) and
+    nothing else; blocks with memory downstream decide how to treat it.
     """
 
     def __init__(
@@ -259,6 +265,7 @@ class ArmPositions(Block):
     def _draw(self, rng: np.random.Generator) -> np.ndarray:
         return rng.normal(scale=self.noise_std, size=self.n) if self.noise_std > 0 else np.zeros(self.n)
 
+    @np.errstate(invalid="ignore")  # a non-finite phase gives a NaN position (documented), silently
     def output(self, k: int) -> None:
         p = self.p.value
         np.cos(self.theta.value, out=p)

@@ -10,12 +10,14 @@ import scipy.signal
 
 from cogblocks.blocks.angles import TWO_PI, wrap_2pi, wrap_angle
 from cogblocks.blocks.core import LowPass
+from cogblocks.blocks.estimation import KalmanEstimator
 from cogblocks.sim import Block, Diagram, Signal
-from cogblocks.sim.params import finite_number, positive_int
+from cogblocks.sim.params import finite_number, one_of, positive_int
 
 __all__ = ["Algorithm1Phase", "PhaseEstimator", "hilbert_phase"]
 
 PHASE = Signal(unit="rad", wrapped=True)
+FRONT_ENDS = ("lowpass", "kalman")
 _ROUNDING = 1e-9  # relative size below which a centred position or velocity is rounding noise
 
 
@@ -58,6 +60,10 @@ class Algorithm1Phase(Block):
     raw : input, scalar, ``unit``
         The unfiltered position, read only to tell valid, missing and frozen samples apart (the
         low-pass filter in front hides both).
+    v, a : input, scalar, ``unit``/s and ``unit``/s^2 (only with ``derivative_inputs=True``)
+        Velocity and acceleration estimated in front (a Kalman filter's ``v_hat`` and ``a_hat``),
+        used instead of the backward differences of step 2; a tick where ``p``, ``v`` or ``a`` is
+        not finite is skipped like a non-finite ``raw``.
     theta : output, scalar, rad, wrapped
         Estimated phase in ``[0, 2π)``.
     amp_p : output, shape (2,), ``unit``
@@ -89,6 +95,9 @@ class Algorithm1Phase(Block):
         (see step 5); ``None`` (the default) compensates nothing.
     order : int
         Order of that filter (>= 1).
+    derivative_inputs : bool
+        Read the velocity and the acceleration from the inputs ``v`` and ``a`` (declared only then)
+        instead of differencing ``p``; ``accel_window`` is then unused.
 
     Notes
     -----
@@ -117,9 +126,15 @@ class Algorithm1Phase(Block):
         max_period: float = 5.0,
         cutoff: float | None = None,
         order: int = 2,
+        derivative_inputs: bool = False,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
+        if not isinstance(derivative_inputs, (bool, np.bool_)):
+            raise ValueError(
+                f"{type(self).__name__}: derivative_inputs must be True or False, got {derivative_inputs!r}"
+            )
+        self.derivative_inputs = bool(derivative_inputs)
         if not isinstance(unit, str) or not unit:
             raise ValueError(f"{type(self).__name__}: unit must be a non-empty string, got {unit!r}")
         self.centre_periods = positive_int(self, "centre_periods", centre_periods)
@@ -131,6 +146,9 @@ class Algorithm1Phase(Block):
         self.order = positive_int(self, "order", order)
         self.add_input("p", shape=(), unit=unit)
         self.add_input("raw", shape=(), unit=unit)
+        if self.derivative_inputs:
+            self.add_input("v", shape=(), unit=f"{unit}/s")
+            self.add_input("a", shape=(), unit=f"{unit}/s^2")
         self.add_output("theta", PHASE)
         self.add_output("amp_p", shape=(2,), unit=unit)
         self.add_output("amp_v", shape=(2,), unit=f"{unit}/s")
@@ -182,6 +200,11 @@ class Algorithm1Phase(Block):
             self._pending = None
             return
         pf = float(self.p.value)
+        if self.derivative_inputs:
+            v_in, a_in = float(self.v.value), float(self.a.value)
+            if not (math.isfinite(pf) and math.isfinite(v_in) and math.isfinite(a_in)):
+                self._pending = None
+                return
         dt = self.dt
         primed = self.primed
         repeats = self.repeats + 1 if primed and raw == self.raw_prev else 0
@@ -199,8 +222,11 @@ class Algorithm1Phase(Block):
         start = n_pushed - n
         # the slot of ``start`` is overwritten only in update(), after this read
         pc = pf - (total - (self.csum[start % self._size] if start else 0.0)) / n
-        v = (pf - self.p_prev) / dt if primed else 0.0
-        a = (v - self.v_hist[self.v_pos]) / (self._m * dt)
+        if self.derivative_inputs:
+            v, a = v_in, a_in
+        else:
+            v = (pf - self.p_prev) / dt if primed else 0.0
+            a = (v - self.v_hist[self.v_pos]) / (self._m * dt)
         amp = self.amp.copy()
         known = self.known.copy()
         last, t_max, t_min, omega, lead = self.last_extremum, self.t_max, self.t_min, self.omega, self.lead
@@ -288,7 +314,13 @@ class PhaseEstimator(Diagram):
 
     A hierarchical diagram of two blocks, ``lowpass`` (:class:`~cogblocks.blocks.LowPass`, started
     in steady state at the first sample) and ``algorithm`` (:class:`Algorithm1Phase`, which also
-    reads the unfiltered position to recognise missing and frozen samples). See
+    reads the unfiltered position to recognise missing and frozen samples). With
+    ``front_end="kalman"`` a :class:`~cogblocks.blocks.estimation.KalmanEstimator` named ``kalman``
+    (constant-acceleration model, one axis, its defaults for arm motion in mm) takes the place of
+    the low-pass filter: its ``p_hat``, ``v_hat`` and ``a_hat`` feed the algorithm, which then takes
+    no differences and compensates no lag (``cutoff``, ``order``, ``compensate`` and
+    ``accel_window`` are unused). Other noise parameters: ``replace("kalman", KalmanEstimator(...))``.
+    See
     :class:`Algorithm1Phase` for the algorithm and the bad-data policy; ``docs/phase-estimation-1d.md``
     for the measurements behind the defaults.
 
@@ -318,6 +350,10 @@ class PhaseEstimator(Diagram):
     compensate : bool
         Add the filter's phase lag at the estimated frequency back to the phase (default). Without
         it the output is plain Algorithm 1 on the filtered signal.
+    front_end : {"lowpass", "kalman"}
+        What estimates position and velocity in front of Algorithm 1: the Butterworth low-pass and
+        backward differences (default), or a Kalman filter (see above). Drop-outs are recognised
+        on the raw position in both cases; the Kalman filter predicts through them.
     unit, centre_periods, accel_window, min_dropout, holdoff, max_period
         As in :class:`Algorithm1Phase`.
     period : float, optional
@@ -346,29 +382,39 @@ class PhaseEstimator(Diagram):
         holdoff: float = 0.2,
         max_period: float = 5.0,
         compensate: bool = True,
+        front_end: str = "lowpass",
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
         if not isinstance(compensate, (bool, np.bool_)):
             raise ValueError(f"PhaseEstimator: compensate must be True or False, got {compensate!r}")
+        self.front_end = one_of(self, "front_end", front_end, FRONT_ENDS)
         cutoff = finite_number(self, "cutoff", cutoff, low=0.0, low_open=True)
         order = positive_int(self, "order", order)
-        lowpass = self.add("lowpass", LowPass(cutoff, order))
-        algorithm = self.add(
-            "algorithm",
-            Algorithm1Phase(
-                unit=unit,
-                centre_periods=centre_periods,
-                accel_window=accel_window,
-                min_dropout=min_dropout,
-                holdoff=holdoff,
-                max_period=max_period,
-                cutoff=cutoff if compensate else None,
-                order=order,
-            ),
+        kalman = front_end == "kalman"
+        algorithm = Algorithm1Phase(
+            unit=unit,
+            centre_periods=centre_periods,
+            accel_window=accel_window,
+            min_dropout=min_dropout,
+            holdoff=holdoff,
+            max_period=max_period,
+            cutoff=cutoff if compensate and not kalman else None,
+            order=order,
+            derivative_inputs=kalman,
         )
-        self.connect(lowpass.y, algorithm.p)
-        self.expose_input("p", lowpass.u, algorithm.raw)
+        if kalman:
+            estimator = self.add("kalman", KalmanEstimator("ca", dims=1, unit=unit))
+            self.add("algorithm", algorithm)
+            self.connect(estimator.p_hat, algorithm.p)
+            self.connect(estimator.v_hat, algorithm.v)
+            self.connect(estimator.a_hat, algorithm.a)
+            self.expose_input("p", estimator.p, algorithm.raw)
+        else:
+            lowpass = self.add("lowpass", LowPass(cutoff, order))
+            self.add("algorithm", algorithm)
+            self.connect(lowpass.y, algorithm.p)
+            self.expose_input("p", lowpass.u, algorithm.raw)
         self.expose_output("theta", algorithm.theta)
         self.expose_output("amp_p", algorithm.amp_p)
         self.expose_output("amp_v", algorithm.amp_v)

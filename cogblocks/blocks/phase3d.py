@@ -26,6 +26,7 @@ import numpy as np
 import scipy.signal
 
 from cogblocks.blocks.angles import TWO_PI, wrap_2pi
+from cogblocks.blocks.estimation import KalmanEstimator
 from cogblocks.sim import ANY, Block, Diagram, Signal
 from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
 
@@ -581,6 +582,12 @@ class PhaseEstimator3D(Diagram):
     computed inside, by the same backward difference as the reference's velocity, so that the two
     match in noise and lag; give a smoothed position if the sensor is noisy.
 
+    With ``velocity="kalman"`` a :class:`~cogblocks.blocks.estimation.KalmanEstimator` named
+    ``kalman`` (``kalman_model``, three axes, its defaults for arm motion in mm) replaces the
+    backward difference: its ``p_hat`` goes to the period estimator and the phase computer in place
+    of the raw position, its ``v_hat`` to the phase computer in place of the differences. It
+    smooths the noise and predicts through missing and frozen samples.
+
     Ports
     -----
     p : input, shape (3,), mm
@@ -599,6 +606,10 @@ class PhaseEstimator3D(Diagram):
         See :class:`PeriodEstimator`.
     search, window, jump_factor, distance_floor, velocity_weight
         See :class:`PhaseComputer`.
+    velocity : {"difference", "kalman"}
+        Backward differences of the raw position (default) or the Kalman front end above.
+    kalman_model : {"cv", "ca"}
+        Model of that Kalman filter (``"ca"`` by default); unused with ``velocity="difference"``.
     """
 
     def __init__(
@@ -615,10 +626,17 @@ class PhaseEstimator3D(Diagram):
         jump_factor: float = 3.0,
         distance_floor: float = 5.0,
         velocity_weight: float | None = None,
+        velocity: str = "difference",
+        kalman_model: str = "ca",
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
-        velocity = self.add("velocity", BackwardDifference())
+        self.velocity = one_of(self, "velocity", velocity, ("difference", "kalman"))
+        self.kalman_model = one_of(self, "kalman_model", kalman_model, ("cv", "ca"))
+        if velocity == "kalman":
+            front = self.add("kalman", KalmanEstimator(kalman_model, dims=3, unit="mm"))
+        else:
+            front = self.add("velocity", BackwardDifference())
         estimator = self.add(
             "period",
             PeriodEstimator(
@@ -647,10 +665,15 @@ class PhaseEstimator3D(Diagram):
         self.connect(customizer.velocities, phase.velocities)
         self.connect(customizer.length, phase.length)
         self.connect(customizer.count, phase.count)
-        self.connect(velocity.y, phase.v)
         self.connect(phase.theta, estimator.theta)
         self.connect(phase.valid, estimator.valid)
-        self.expose_input("p", velocity.u, estimator.p, phase.p)
+        if velocity == "kalman":
+            self.connect(front.p_hat, estimator.p, phase.p)
+            self.connect(front.v_hat, phase.v)
+            self.expose_input("p", front.p)
+        else:
+            self.connect(front.y, phase.v)
+            self.expose_input("p", front.u, estimator.p, phase.p)
         self.expose_output("theta", phase.theta)
         self.expose_output("valid", phase.valid)
 

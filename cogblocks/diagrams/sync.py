@@ -22,6 +22,7 @@ from cogblocks.blocks import (
 from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.sim import Block, Diagram, Simulator
+from cogblocks.sim.params import one_of
 
 __all__ = ["L2Sync", "MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync"]
 
@@ -106,12 +107,15 @@ def _group_of(group: int | SyncGroup) -> SyncGroup:
     return TABLE2[group]
 
 
-def phase_sensing(n: int, amplitude: float = 150.0, noise_std: float = 1.0, seed: int = 0) -> Diagram:
+def phase_sensing(
+    n: int, amplitude: float = 150.0, noise_std: float = 1.0, seed: int = 0, front_end: str = "lowpass"
+) -> Diagram:
     """Phases → 1D arm positions → one :class:`PhaseEstimator` per participant → estimated phases.
 
     A hierarchical block (input ``theta``, output ``theta_hat``) standing for
     what a real set-up measures: the L2 architecture then works on estimated
-    phases, as it would on a motion-capture stream.
+    phases, as it would on a motion-capture stream. ``front_end`` is the
+    estimators' option (``"lowpass"`` or ``"kalman"``, see :class:`PhaseEstimator`).
     """
     d = Diagram()
     arms = d.add("arms", ArmPositions(n, amplitude, noise_std=noise_std, seed=seed))
@@ -119,7 +123,7 @@ def phase_sensing(n: int, amplitude: float = 150.0, noise_std: float = 1.0, seed
     join = d.add("join", Mux(n))
     d.connect(arms.p, split.u)
     for i in range(n):
-        estimator = d.add(f"estimator{i}", PhaseEstimator())
+        estimator = d.add(f"estimator{i}", PhaseEstimator(front_end=front_end))
         d.connect(getattr(split, f"y{i}"), estimator.p)
         d.connect(estimator.theta, getattr(join, f"u{i}"))
     d.expose_input("theta", arms.theta)
@@ -137,6 +141,7 @@ def pop_sync(
     domain: str = "phase",
     noise_std: float = 1.0,
     seed: int = 0,
+    front_end: str = "lowpass",
 ) -> Diagram:
     """A ready closed-loop diagram of the PoP of Social Connectedness.
 
@@ -161,9 +166,13 @@ def pop_sync(
         amplitude, ``noise_std`` mm of noise seeded by ``seed``) and the L2
         architecture sees the phases estimated from them. The group and the
         order parameter still use the true phases.
+    front_end : {"lowpass", "kalman"}
+        What the phase estimators of the ``"position"`` domain put in front of
+        Algorithm 1 (see :class:`PhaseEstimator`); unused in the phase domain.
     """
     if domain not in ("phase", "position"):
         raise ValueError(f"pop_sync: domain must be 'phase' or 'position', got {domain!r}")
+    one_of("pop_sync", "front_end", front_end, ("lowpass", "kalman"))
     params = _group_of(group)
     d = Diagram()
     kuramoto = d.add(
@@ -179,7 +188,9 @@ def pop_sync(
         seen = d.add("seen", Substitute(params.assisted))
         d.connect(kuramoto.theta, seen.u)
         if domain == "position":
-            sensing = d.add("sensing", phase_sensing(params.n, noise_std=noise_std, seed=seed))
+            sensing = d.add(
+                "sensing", phase_sensing(params.n, noise_std=noise_std, seed=seed, front_end=front_end)
+            )
             d.connect(kuramoto.theta, sensing.theta)
             d.connect(sensing.theta_hat, arch.theta)
         else:

@@ -259,6 +259,10 @@ CASES = [
     case("PhaseEstimator", "holdoff", -1.0, "[0.0, inf)"),
     case("PhaseEstimator", "max_period", 0.0, "(0.0, inf)"),
     case("PhaseEstimator", "compensate", "yes", "True or False"),
+    case("PhaseEstimator", "front_end", "median", "one of ['lowpass', 'kalman']"),
+    case("Algorithm1Phase", "derivative_inputs", "yes", "True or False"),
+    case("PhaseEstimator3D", "velocity", "spline", "one of ['difference', 'kalman']"),
+    case("PhaseEstimator3D", "kalman_model", "cj", "one of ['cv', 'ca']"),
     # 3D phase
     case("PeriodEstimator", "h", 1, "integer >= 2"),
     case("PeriodEstimator", "capacity", 5, "integer >= 23"),
