@@ -627,8 +627,7 @@ class DiscreteLTI(Block):
     Notes
     -----
     Bad data policy: a sample with a non-finite element is skipped: the output
-    of that tick and the next state are computed with the input held at its
-    last finite value, so one NaN never poisons the state.
+    holds and the state does not advance, so one NaN never poisons the state.
     """
 
     def __init__(
@@ -658,22 +657,19 @@ class DiscreteLTI(Block):
         self.add_input("u", shape=() if m == 1 else (m,), unit=unit_in, feedthrough=bool(np.any(self.D)))
         self.add_output("y", shape=() if p == 1 else (p,), unit=unit_out)
         self.add_state("x", x0)
-        self.add_state("u_last", np.zeros(m))
 
     def setup(self) -> None:
         sys_dt = self.sys.dt
         if sys_dt is not True and abs(float(sys_dt) - self.dt) > 1e-12:
             raise self._fail(f"the system's dt {sys_dt} s differs from the block's step {self.dt} s")
 
-    def _input(self) -> np.ndarray:
-        u = self.u.value.reshape(-1)
-        return u if np.isfinite(u).all() else self.u_last
-
     def output(self, k: int) -> None:
-        y = self.C @ self.x + self.D @ self._input()
-        self.y.value[...] = y[0] if self._scalar_out else y
+        u = self.u.value.reshape(-1)
+        if np.isfinite(u).all():
+            y = self.C @ self.x + self.D @ u
+            self.y.value[...] = y[0] if self._scalar_out else y
 
     def update(self, k: int) -> None:
-        u = self._input()
-        self.x = self.A @ self.x + self.B @ u
-        self.u_last = u.copy()
+        u = self.u.value.reshape(-1)
+        if np.isfinite(u).all():
+            self.x = self.A @ self.x + self.B @ u

@@ -59,9 +59,9 @@ class KuramotoGroup(Block):
 
     Notes
     -----
-    Bad data policy: a non-finite frequency or θ_L2 is replaced by its last
-    finite value (the natural frequency, or the participant's own phase,
-    before any), so the phases stay finite.
+    Bad data policy: for that tick, a non-finite frequency is replaced by the
+    constructor's ``omega`` and a non-finite θ_L2 by the assisted
+    participant's own phase, so the phases stay finite.
     """
 
     def __init__(
@@ -99,8 +99,6 @@ class KuramotoGroup(Block):
             self.add_input("theta_l2", PHASE, feedthrough=False)
         self.add_output("theta", PHASE.with_(shape=(n,)), initial=np.mod(theta0, TWO_PI))
         self.add_state("phase", np.mod(theta0, TWO_PI).astype(float))
-        self.add_state("omega_last", self.omega0.copy())
-        self.add_state("theta_l2_last", float("nan"))
         self._seen = np.zeros(n)
         self._diff = np.zeros((n, n))
 
@@ -113,16 +111,10 @@ class KuramotoGroup(Block):
         if self.assisted is not None:
             theta_l2 = float(self.theta_l2.value)
             if math.isfinite(theta_l2):
-                self.theta_l2_last = theta_l2
-            elif math.isfinite(self.theta_l2_last):
-                theta_l2 = self.theta_l2_last
-            else:
-                theta_l2 = self.phase[self.assisted]
-            seen[self.assisted] = theta_l2
+                seen[self.assisted] = theta_l2
         omega = self.omega.value
         if not np.isfinite(omega).all():
-            omega = np.where(np.isfinite(omega), omega, self.omega_last)
-        self.omega_last[...] = omega
+            omega = np.where(np.isfinite(omega), omega, self.omega0)
         d = self._diff
         np.subtract(seen[None, :], seen[:, None], out=d)
         np.sin(d, out=d)
