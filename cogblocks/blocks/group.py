@@ -14,6 +14,7 @@ from cogblocks.sim.params import finite_array, finite_number, positive_int
 __all__ = ["ArmPositions", "KuramotoGroup", "KuramotoOscillator", "OrderParameter", "ring_adjacency"]
 
 PHASE = Signal(unit="rad", wrapped=True)
+_BELOW_TWO_PI = np.nextafter(TWO_PI, 0.0)
 
 
 def ring_adjacency(n: int) -> np.ndarray:
@@ -101,6 +102,7 @@ class KuramotoGroup(Block):
         self.add_state("phase", np.mod(theta0, TWO_PI).astype(float))
         self._seen = np.zeros(n)
         self._diff = np.zeros((n, n))
+        self._rate = np.zeros(n)
 
     def output(self, k: int) -> None:
         self.theta.value[...] = self.phase
@@ -113,19 +115,20 @@ class KuramotoGroup(Block):
             if math.isfinite(theta_l2):
                 seen[self.assisted] = theta_l2
         omega = self.omega.value
-        if not np.isfinite(omega).all():
+        if self.omega.driven and not np.isfinite(omega).all():  # the default is finite by construction
             omega = np.where(np.isfinite(omega), omega, self.omega0)
         d = self._diff
         np.subtract(seen[None, :], seen[:, None], out=d)
         np.sin(d, out=d)
         d *= self.adjacency
-        rate = d.sum(axis=1)
+        rate = np.add.reduce(d, axis=1, out=self._rate)
         rate *= self.gain
         rate += omega
         rate *= self.dt
-        self.phase += rate
-        np.mod(self.phase, TWO_PI, out=self.phase)
-        self.phase[self.phase >= TWO_PI] = 0.0  # np.mod gives 2π for tiny negative values
+        phase = self.phase
+        phase += rate
+        np.mod(phase, TWO_PI, out=phase)
+        np.minimum(phase, _BELOW_TWO_PI, out=phase)  # np.mod gives 2π for tiny negative values
 
 
 class KuramotoOscillator(Block):
@@ -196,11 +199,11 @@ class OrderParameter(Block):
 
     def output(self, k: int) -> None:
         theta = self.theta.value
-        if not np.isfinite(theta).all():
+        if not math.isfinite(np.add.reduce(theta)):  # one cheap check keeps cos/sin off inf and NaN
             theta = theta[np.isfinite(theta)]
             if theta.size == 0:
                 return
-        self.r.value[...] = math.hypot(np.cos(theta).sum(), np.sin(theta).sum()) / theta.size
+        self.r.value[...] = math.hypot(np.add.reduce(np.cos(theta)), np.add.reduce(np.sin(theta))) / theta.size
 
 
 class ArmPositions(Block):

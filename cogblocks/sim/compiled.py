@@ -211,12 +211,15 @@ class CompiledDiagram:
             self._external[name] = arr
             for inp in targets:
                 inp.value = arr
+                inp.driven = True
         for block in leaves.values():
             for inp in block._inputs.values():
                 if inp in drivers:
                     inp.value = drivers[inp].value
+                    inp.driven = True
                 elif not any(inp in t for t in external.values()):
                     inp.value = np.array(np.broadcast_to(inp.default, inp.spec.shape), dtype=inp.spec.dtype)
+                    inp.driven = False
 
     def _order(self, leaves, drivers) -> list[str]:
         """Topological order over feedthrough wires; refuse algebraic loops."""

@@ -46,10 +46,12 @@ class Input(Port):
     Parameters beyond the spec: ``default`` (value used when nothing drives the
     input; without it an unconnected input is a compile error) and
     ``feedthrough`` (whether the block's outputs at a tick read this input at the
-    same tick; ``False`` for inputs read only in ``update``).
+    same tick; ``False`` for inputs read only in ``update``). After compiling,
+    ``driven`` tells whether a wire or a diagram input feeds it (``False``: it
+    reads its default).
     """
 
-    __slots__ = ("declared", "default", "feedthrough")
+    __slots__ = ("declared", "default", "feedthrough", "driven")
 
     def __init__(
         self,
@@ -63,6 +65,8 @@ class Input(Port):
         self.declared = spec
         self.default = None if default is None else np.asarray(default)
         self.feedthrough = bool(feedthrough)
+        # set when compiled: False when the input reads its (constant, checked) default
+        self.driven = True
 
 
 class Output(Port):
