@@ -60,6 +60,15 @@ _EDGE_SHARE = 0.05
 _PADDED_PASSES = 2
 _PAD_CYCLES = 3
 
+# A coordinate (mm) or velocity (mm/s) beyond a kilometre is no hand motion: bad data, like NaN.
+_PLAUSIBLE = 1e6
+
+
+def _plausible(x: np.ndarray) -> bool:
+    """Finite and physically plausible (``abs(nan) < bound`` is False, so NaN fails too)."""
+    return bool(np.all(np.abs(x) < _PLAUSIBLE))
+
+
 # A degenerate reference axis: its spread is below this share of the largest spread.
 _DEGENERATE = 1e-9
 
@@ -254,7 +263,7 @@ class PeriodEstimator(Block):
     A period is stored when it completes; the outputs show it from the next tick. If the buffer
     fills before the first period is found, the search restarts from the next fast sample; if it
     fills during a later period, that period is dropped and recording starts again at the next
-    wrap. Bad data policy: a sample with a non-finite coordinate is skipped.
+    wrap. Bad data policy: a sample with a non-finite or implausible (beyond 1 km) coordinate is skipped.
     """
 
     def __init__(
@@ -305,7 +314,7 @@ class PeriodEstimator(Block):
 
     def update(self, k: int) -> None:
         p = self.p.value
-        if not np.all(np.isfinite(p)):
+        if not _plausible(p):
             return
         if self.stage == _WAITING:
             self._wait_for_motion(p)
@@ -414,6 +423,11 @@ class ReferenceCustomizer(Block):
     ----------
     reference : array_like, shape (N, 3)
         The reference motion γ_ref, one cycle from phase 0, in mm (N >= 2).
+
+    Notes
+    -----
+    Bad data policy: a period with a non-finite or implausible (beyond 1 km)
+    coordinate is not fitted; the previous customised reference holds.
     """
 
     def __init__(self, reference: Any, *, period: float | None = None) -> None:
@@ -437,6 +451,8 @@ class ReferenceCustomizer(Block):
         if count == self.count.value:
             return
         m = int(self.last_length.value)
+        if m < 2 or not _plausible(self.last_period.value[:m]):
+            return
         positions, velocities = _customize(self.reference, self.last_period.value[:m], self.dt)
         self.positions.value[:m] = positions
         self.positions.value[m:] = 0.0
@@ -493,7 +509,8 @@ class PhaseComputer(Block):
 
     Notes
     -----
-    Bad data policy: a tick with a non-finite position or velocity holds the last phase.
+    Bad data policy: a tick with a non-finite or implausible (beyond 1 km, or 1 km/s) position or velocity
+    holds the last phase.
     """
 
     def __init__(
@@ -546,7 +563,7 @@ class PhaseComputer(Block):
     def output(self, k: int) -> None:
         self._next = (self.index, self.ref_count, self.full_distance)
         count = int(self.count.value)
-        if count == 0 or not (np.all(np.isfinite(self.p.value)) and np.all(np.isfinite(self.v.value))):
+        if count == 0 or not (_plausible(self.p.value) and _plausible(self.v.value)):
             return
         m = int(self.length.value)
         w = self.window
