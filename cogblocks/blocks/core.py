@@ -15,7 +15,7 @@ import numpy as np
 import scipy.signal
 
 from cogblocks.sim import ANY, Block, Signal, SimulationError
-from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
+from cogblocks.sim.params import finite_array, finite_number, flag, one_of, positive_int
 
 __all__ = [
     "Constant",
@@ -85,8 +85,8 @@ class Gain(Block):
 
     def __init__(self, k: Any, *, matrix: bool = False, period: float | None = None) -> None:
         super().__init__(period=period)
-        self.k = finite_array(self, "k", k, ndim=2 if matrix else None)
-        self.matrix = matrix
+        self.matrix = flag(self, "matrix", matrix)
+        self.k = finite_array(self, "k", k, ndim=2 if self.matrix else None)
         self.add_input("u", ANY)
         if matrix:
             self.add_output("y", like="u", shape=(self.k.shape[0],), wrapped=False)
@@ -393,6 +393,11 @@ class Function(Block):
         super().__init__(period=period)
         if not callable(fn):
             raise ValueError(f"Function: fn must be callable, got {fn!r}")
+        if not isinstance(inputs, Mapping):
+            raise ValueError(f"Function: inputs must be a mapping of port name to Signal, got {inputs!r}")
+        if not isinstance(outputs, (Signal, Mapping)):
+            raise ValueError(f"Function: outputs must be a Signal or a mapping of port name to Signal, got {outputs!r}")
+        feedthrough = flag(self, "feedthrough", feedthrough)
         self.fn = fn
         for name, spec in inputs.items():
             self.add_input(name, spec, feedthrough=feedthrough)

@@ -9,7 +9,7 @@ import numpy as np
 
 from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.sim import Block, Signal
-from cogblocks.sim.params import finite_array, finite_number, positive_int
+from cogblocks.sim.params import finite_array, finite_number, positive_int, random_generator
 
 __all__ = ["ArmPositions", "KuramotoGroup", "KuramotoOscillator", "OrderParameter", "ring_adjacency"]
 
@@ -252,7 +252,7 @@ class ArmPositions(Block):
         self.noise_std = finite_number(self, "noise_std", noise_std, low=0.0)
         self.add_input("theta", Signal(shape=(n,), unit="rad", wrapped=None))
         self.add_output("p", shape=(n,), unit="mm")
-        rng = np.random.default_rng(seed)
+        rng = random_generator(self, "seed", seed)
         # the noise of a tick is drawn in the previous tick's update, so output() leaves the state alone
         self.add_state("noise", self._draw(rng))
         self.add_state("rng", rng)

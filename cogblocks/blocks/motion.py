@@ -24,7 +24,7 @@ import numpy as np
 from cogblocks.blocks.angles import wrap_angle
 from cogblocks.blocks.group import ring_adjacency
 from cogblocks.sim import Block, Signal
-from cogblocks.sim.params import finite_array, finite_number
+from cogblocks.sim.params import finite_array, finite_number, positive_int
 
 __all__ = [
     "ACTIONS",
@@ -107,8 +107,13 @@ class L3Policy(Protocol):
 class _MotionPorts(Block):
     """The ports every motion computer shares."""
 
-    def __init__(self, n: int, period: float | None) -> None:
+    def __init__(self, n: int, assisted: int, period: float | None) -> None:
         super().__init__(period=period)
+        n = positive_int(self, "n", n, minimum=2)
+        if isinstance(assisted, bool) or not isinstance(assisted, (int, np.integer)) or not 0 <= assisted < n:
+            raise ValueError(
+                f"{type(self).__name__}: assisted must be a 0-based index in [0, {n - 1}], got {assisted!r}"
+            )
         self.add_input("theta", PHASE.with_(shape=(n,)), feedthrough=self._theta_feedthrough)
         self.add_input("lam", Signal(unit="rad"), default=math.pi, feedthrough=False)
         self.add_output("theta_ref", PHASE)
@@ -136,9 +141,7 @@ class MeanPhaseMotion(_MotionPorts):
     """
 
     def __init__(self, n: int, assisted: int, *, period: float | None = None) -> None:
-        super().__init__(n, period)
-        if not 0 <= assisted < n:
-            raise ValueError(f"MeanPhaseMotion: assisted must be a 0-based index in [0, {n - 1}], got {assisted!r}")
+        super().__init__(n, assisted, period)
         self.others = np.array([j for j in range(n) if j != assisted])
 
     def output(self, k: int) -> None:
@@ -190,11 +193,9 @@ class MotionComputer(_MotionPorts):
         adjacency: Any = "ring",
         period: float | None = None,
     ) -> None:
-        super().__init__(n, period)
+        super().__init__(n, assisted, period)
         if not callable(getattr(policy, "act", None)):
             raise ValueError(f"MotionComputer: policy must have an act(context) method, got {policy!r}")
-        if not 0 <= assisted < n:
-            raise ValueError(f"MotionComputer: assisted must be a 0-based index in [0, {n - 1}], got {assisted!r}")
         self.policy = policy
         self.assisted = assisted
         self.gain = finite_number(self, "gain", gain, low=0.0)

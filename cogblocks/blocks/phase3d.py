@@ -28,7 +28,7 @@ import scipy.signal
 from cogblocks.blocks.angles import TWO_PI, wrap_2pi
 from cogblocks.blocks.estimation import KalmanEstimator
 from cogblocks.sim import ANY, Block, Diagram, Signal
-from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
+from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int, random_generator
 
 __all__ = [
     "BackwardDifference",
@@ -741,7 +741,7 @@ class PositionComputer(Block):
         self.add_input("theta", Signal(unit="rad", wrapped=None))
         self.add_input("reference", shape=ref.shape, unit="mm", default=ref)
         self.add_output("p", POSITION, initial=ref[0])
-        rng = np.random.default_rng(seed)
+        rng = random_generator(self, "seed", seed)
         # the noise of a tick is drawn in the previous tick's update, so output() leaves the state alone
         self.add_state("noise", self._draw(rng))
         self.add_state("rng", rng)

@@ -17,7 +17,7 @@ __all__ = ["Block"]
 _SPEC_FIELDS = ("shape", "dtype", "unit", "wrapped")
 
 
-def _spec_from(spec: Signal | None, fields: dict[str, Any], defaults: Signal) -> Signal:
+def _spec_from(owner: Block, spec: Signal | None, fields: dict[str, Any], defaults: Signal) -> Signal:
     unknown = set(fields) - set(_SPEC_FIELDS)
     if unknown:
         raise TypeError(f"unknown signal field(s) {sorted(unknown)}; allowed: {list(_SPEC_FIELDS)}")
@@ -25,7 +25,10 @@ def _spec_from(spec: Signal | None, fields: dict[str, Any], defaults: Signal) ->
         if fields:
             raise TypeError("give either a Signal spec or its fields, not both")
         return spec
-    return defaults.with_(**fields) if fields else defaults
+    try:
+        return defaults.with_(**fields) if fields else defaults
+    except ValueError as exc:  # a bad unit/shape/wrapped given to the block's constructor: say whose
+        raise ValueError(f"{type(owner).__name__}: {exc}") from None
 
 
 class Block:
@@ -106,7 +109,7 @@ class Block:
             lets feedback loops through the block compile.
         """
         self._check_init(name)
-        port = Input(self, name, _spec_from(spec, fields, Signal()), default=default, feedthrough=feedthrough)
+        port = Input(self, name, _spec_from(self, spec, fields, Signal()), default=default, feedthrough=feedthrough)
         if port.default is not None and port.spec.shape is not None and port.default.shape not in ((), port.spec.shape):
             raise ValueError(
                 f"{type(self).__name__}.{name}: default of shape {port.default.shape} "
@@ -149,7 +152,7 @@ class Block:
                 raise TypeError("give either a spec or like=, not both")
             port = Output(self, name, None, like=like, like_overrides=fields, initial=initial)
         else:
-            resolved = _spec_from(spec, fields, Signal())
+            resolved = _spec_from(self, spec, fields, Signal())
             if not resolved.concrete:
                 raise ValueError(f"{type(self).__name__}.{name}: an output spec must fix every field, got {resolved}")
             port = Output(self, name, resolved, initial=initial)

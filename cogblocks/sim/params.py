@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["finite_array", "finite_number", "positive_int", "one_of"]
+__all__ = ["finite_array", "finite_number", "flag", "one_of", "positive_int", "random_generator"]
 
 
 def _owner(owner: object) -> str:
@@ -80,3 +80,21 @@ def one_of(owner: object, name: str, value: Any, allowed: Iterable[Any]) -> Any:
     if value not in options:
         raise ValueError(f"{_owner(owner)}: {name} must be one of {options}, got {value!r}")
     return value
+
+
+def flag(owner: object, name: str, value: Any) -> bool:
+    """Return ``value`` if it is a bool, else raise ``ValueError``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{_owner(owner)}: {name} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def random_generator(owner: object, name: str, seed: Any) -> np.random.Generator:
+    """A ``numpy.random.Generator`` from a seed (None, an int >= 0, a SeedSequence or a Generator)."""
+    if seed is None or isinstance(seed, (np.random.Generator, np.random.SeedSequence)):
+        return np.random.default_rng(seed)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(
+            f"{_owner(owner)}: {name} must be None, an int >= 0, a SeedSequence or a Generator, got {seed!r}"
+        )
+    return np.random.default_rng(seed)
