@@ -47,6 +47,12 @@ class KinematicPredictor(Block):
         so bad samples never reach the output.
     unit : str
         Unit of the positions.
+
+    Notes
+    -----
+    Bad data policy: with ``horizon = 0`` the velocity and acceleration are not
+    used at all (so a non-finite one cannot reach the output); otherwise a
+    non-finite estimate gives a non-finite output, as the estimator documents.
     """
 
     def __init__(
@@ -78,6 +84,9 @@ class KinematicPredictor(Block):
     def output(self, k: int) -> None:
         base = self.p_hat.value if self.smoothing or self.predicted.value else self.p.value
         tau = self.horizon
+        if tau == 0.0:  # nothing to extrapolate: do not touch v and a (0 * inf is NaN)
+            self.p_out.value[...] = base
+            return
         self.p_out.value[...] = base + tau * self.v_hat.value + (0.5 * tau * tau) * self.a_hat.value
 
 
