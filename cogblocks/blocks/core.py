@@ -550,7 +550,21 @@ class Demux(Block):
             port.value[...] = u[i]
 
 
-class Select(Block):
+class _Indexed(Block):
+    """Shared set-up of the blocks that address one element of a vector input ``u``."""
+
+    def __init__(self, index: int, period: float | None) -> None:
+        super().__init__(period=period)
+        self.index = positive_int(self, "index", index, minimum=0)
+        self.add_input("u", Signal(shape=None, dtype=None, unit=None, wrapped=None))
+
+    def setup(self) -> None:
+        shape = self.u.spec.shape
+        if len(shape) != 1 or self.index >= shape[0]:
+            raise self._fail(f"index {self.index} does not fit an input of shape {shape}")
+
+
+class Select(_Indexed):
     """Pick one element of a vector: ``y = u[index]``.
 
     Ports: input ``u`` (shape (n,)), output ``y`` (scalar, same unit and wrapping).
@@ -563,21 +577,14 @@ class Select(Block):
     """
 
     def __init__(self, index: int, *, period: float | None = None) -> None:
-        super().__init__(period=period)
-        self.index = positive_int(self, "index", index, minimum=0)
-        self.add_input("u", Signal(shape=None, dtype=None, unit=None, wrapped=None))
+        super().__init__(index, period)
         self.add_output("y", like="u", shape=())
-
-    def setup(self) -> None:
-        shape = self.u.spec.shape
-        if len(shape) != 1 or self.index >= shape[0]:
-            raise self._fail(f"index {self.index} does not fit an input of shape {shape}")
 
     def output(self, k: int) -> None:
         self.y.value[...] = self.u.value[self.index]
 
 
-class Substitute(Block):
+class Substitute(_Indexed):
     """Replace one element of a vector: ``y = u`` with ``y[index] = v``.
 
     Ports: inputs ``u`` (shape (n,)) and ``v`` (scalar, same unit), output ``y``
@@ -592,16 +599,13 @@ class Substitute(Block):
     """
 
     def __init__(self, index: int, *, period: float | None = None) -> None:
-        super().__init__(period=period)
-        self.index = positive_int(self, "index", index, minimum=0)
-        self.add_input("u", Signal(shape=None, dtype=None, unit=None, wrapped=None))
+        super().__init__(index, period)
         self.add_input("v", Signal(shape=(), dtype=None, unit=None, wrapped=None))
         self.add_output("y", like="u")
 
     def setup(self) -> None:
+        super().setup()
         shape = self.u.spec.shape
-        if len(shape) != 1 or self.index >= shape[0]:
-            raise self._fail(f"index {self.index} does not fit an input of shape {shape}")
         problem = self.v.spec.with_(shape=shape).mismatch(self.u.spec)
         if problem:
             raise self._fail(f"v ({self.v.spec}) does not match the elements of u ({self.u.spec}): {problem}")
