@@ -49,6 +49,9 @@ _PROCESS_FACTOR = {2: 2.0 / 3.0, 3: 11.0 / 20.0}
 _CHI2_1_MEDIAN = float(scipy.stats.chi2.ppf(0.5, 1))
 
 
+# A position beyond this (in the position unit, e.g. 1000 km in mm) is a corrupted sample, not a measurement.
+_IMPLAUSIBLE = 1e9
+
 class KalmanEstimator(Block):
     """Gated Kalman filter of positions with constant-velocity or constant-acceleration model.
 
@@ -104,8 +107,10 @@ class KalmanEstimator(Block):
     -----
     Bad data policy, frame by frame:
 
-    * **Missing**: a sample with any non-finite component (NaN or inf) is
-      missing as a whole; the filter predicts only and ``predicted`` is True.
+    * **Missing**: a sample with any non-finite component (NaN or inf), or
+      one beyond 1e9 in the position unit (no tracker reports that: it is a
+      corrupted value), is missing as a whole; the filter predicts only and
+      ``predicted`` is True.
       Missing frames neither count as nor reset consecutive rejections.
     * **Frozen**: trackers that lose a marker often repeat its last value. A
       sample bit-identical to the ``freeze_frames`` samples before it is
@@ -232,7 +237,8 @@ class KalmanEstimator(Block):
     def output(self, k: int) -> None:
         z = self._z
         z[...] = self.p.value.reshape(-1)
-        finite = self._finite = bool(np.isfinite(z).all())
+        # abs(nan) < bound is False, so one comparison catches NaN, inf and corrupted huge values
+        finite = self._finite = bool((np.abs(z) < _IMPLAUSIBLE).all())
         self._repeats_next = self.repeats + 1 if finite and np.array_equal(z, self.last_raw) else 0
         frozen = self.freeze_frames is not None and self._repeats_next >= self.freeze_frames
         valid = self._valid = finite and not frozen

@@ -966,9 +966,6 @@ def _amplification(name: str) -> type | None:
 
 VIOLATIONS: dict[tuple[type | None, str], str] = {
     (UnitDelay, "u"): f"{SILENT}, yet a NaN sample comes out one tick later",
-    (KalmanEstimator, "p"): f"a 1e300 sample raises a {WARNS} 'overflow encountered in matmul' in the "
-    "innovation/covariance (the estimates stay finite)",
-    (L1, "p"): f"a 1e300 sample raises a {WARNS} 'overflow encountered in matmul' (its KalmanEstimator)",
     (KinematicPredictor, "a_hat"): f"an infinite a_hat with horizon 0 computes 0 * inf: {WARNS} 'invalid value "
     "encountered in multiply'",
     (PhasePositionComputer, "reference"): "the policy covers theta only: a NaN in the reference input comes "
