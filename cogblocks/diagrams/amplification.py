@@ -30,10 +30,11 @@ from cogblocks.blocks.encoding import (
     load_encoder,
     solution_table,
 )
+from cogblocks.blocks.estimation import KalmanEstimator
 from cogblocks.blocks.rl import CorrectorNet, NoCorrection, RLCorrector, load_corrector
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 from cogblocks.sim import Block, Diagram, Simulator
-from cogblocks.sim.params import one_of
+from cogblocks.sim.params import finite_number, one_of
 
 __all__ = [
     "PAPER",
@@ -211,6 +212,9 @@ def pop_amplification(
     corrector: Block | None = None,
     blending: Block | None = None,
     e_des: int = 1,
+    front_end: str = "recorded",
+    noise_mm: float = 0.0,
+    seed: int = 0,
 ) -> Diagram:
     """A ready diagram replaying one human movement through the L2 architecture.
 
@@ -236,7 +240,15 @@ def pop_amplification(
         A blending rule replacing the :class:`VelocityBlender`.
     e_des : {0, 1}
         1: encode fear; 0: remove it.
+    front_end : {"recorded", "kalman"}
+        ``"recorded"`` feeds the recorded velocity and position; ``"kalman"`` plays only the tracked
+        positions (plus ``noise_mm`` of white noise, seeded by ``seed``) through a 3D
+        :class:`~cogblocks.blocks.estimation.KalmanEstimator` (block ``tracking``) whose position and
+        velocity estimates feed the architecture, as on a live motion-capture stream. Without noise
+        its frozen-sample detection is off (an exactly repeated resting position is a still hand).
     """
+    one_of("pop_amplification", "front_end", front_end, ("recorded", "kalman"))
+    noise_mm = finite_number("pop_amplification", "noise_mm", noise_mm, low=0.0)
     velocity, position = (np.asarray(a, dtype=np.float64) for a in movement)
     if velocity.ndim != 2 or velocity.shape[1] != 3 or position.shape != velocity.shape:
         raise ValueError(
@@ -260,8 +272,20 @@ def pop_amplification(
     )
     altered = d.add("altered", Buffer(library.max_len))
     classifier = d.add("encoder", EncoderClassifier(encoder))
-    d.connect(human_v.y, l2.v_h)
-    d.connect(human_p.y, l2.p_h)
+    if front_end == "kalman":
+        noise = np.random.default_rng(seed).normal(scale=noise_mm, size=position.shape) if noise_mm else 0.0
+        tracked = d.add("tracked", Playback(position + noise, unit="mm", at_end="hold"))
+        # noise-free replays repeat the resting position exactly: that is a still hand, not a frozen tracker
+        freeze = 2 if noise_mm > 0 else None
+        tracking = d.add(
+            "tracking", KalmanEstimator(model="ca", measurement_noise=max(noise_mm, 0.1), freeze_frames=freeze)
+        )
+        d.connect(tracked.y, tracking.p)
+        d.connect(tracking.v_hat, l2.v_h)
+        d.connect(tracking.p_hat, l2.p_h)
+    else:
+        d.connect(human_v.y, l2.v_h)
+        d.connect(human_p.y, l2.p_h)
     d.connect(l2.v_a, altered.v)
     d.connect(l2.p_a, altered.p)
     d.connect(altered.velocity, classifier.velocity)
@@ -293,6 +317,8 @@ def run_amplification(
     *,
     limit: int | None = None,
     e_des: int = 1,
+    front_end: str = "recorded",
+    noise_mm: float = 0.0,
 ) -> dict[str, dict[str, Any]]:
     """Replay every validation movement that does not encode ``e_des`` through the online architecture.
 
@@ -313,6 +339,7 @@ def run_amplification(
         Replay only the first ``limit`` movements (smoke tests).
     e_des : {0, 1}
         1: make no-fear movements encode fear; 0: remove fear from fear movements.
+    front_end, noise_mm : see :func:`pop_amplification` (movement ``i`` uses noise seed ``i``).
 
     Returns
     -------
@@ -344,6 +371,9 @@ def run_amplification(
                 corrector=NoCorrection() if blender is not None else factories[variant](),
                 blending=blender,
                 e_des=e_des,
+                front_end=front_end,
+                noise_mm=noise_mm,
+                seed=int(index),
             )
             trace = Simulator(d, probes={"decision": "encoder.decision"}).run(n_steps=n_steps)
             encoded.append(int(trace["decision"][-1]) == e_des)
