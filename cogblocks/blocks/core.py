@@ -15,7 +15,16 @@ import numpy as np
 import scipy.signal
 
 from cogblocks.sim import ANY, Block, Signal, SimulationError
-from cogblocks.sim.params import finite_array, finite_number, flag, one_of, positive_int
+from cogblocks.sim.params import (
+    finite_array,
+    finite_number,
+    flag,
+    one_of,
+    positive_int,
+    shape_arg,
+    unit_arg,
+    wrapped_arg,
+)
 
 __all__ = [
     "Constant",
@@ -169,6 +178,9 @@ class _Memory(Block):
     ) -> None:
         super().__init__(period=period)
         self._initial = finite_array(self, "initial", initial)
+        shape = shape_arg(self, "shape", shape, optional=True)
+        unit = unit_arg(self, "unit", unit, optional=True)
+        wrapped = wrapped_arg(self, "wrapped", wrapped, optional=True)
         self.add_input("u", _open_spec(shape, None, None), feedthrough=False)
         if shape is not None:
             # explicit spec: what a feedback loop of generic blocks needs to compile
@@ -541,6 +553,8 @@ class Demux(Block):
     ) -> None:
         super().__init__(period=period)
         self.n = positive_int(self, "n", n)
+        unit = unit_arg(self, "unit", unit, optional=True)
+        wrapped = wrapped_arg(self, "wrapped", wrapped, optional=True)
         self.add_input("u", Signal(shape=(n,), dtype=None, unit=unit, wrapped=wrapped))
         self._outs = [self.add_output(f"y{i}", like="u", shape=()) for i in range(n)]
 
@@ -662,6 +676,7 @@ class DiscreteLTI(Block):
         self.A, self.B, self.C, self.D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
         n, m, p = self.A.shape[0], self.B.shape[1], self.C.shape[0]
         x0 = np.zeros(n) if x0 is None else finite_array(self, "x0", x0, shape=(n,))
+        unit_in, unit_out = unit_arg(self, "unit_in", unit_in), unit_arg(self, "unit_out", unit_out)
         self._scalar_in, self._scalar_out = m == 1, p == 1
         self.add_input("u", shape=() if m == 1 else (m,), unit=unit_in, feedthrough=bool(np.any(self.D)))
         self.add_output("y", shape=() if p == 1 else (p,), unit=unit_out)

@@ -94,7 +94,10 @@ class KuramotoGroup(Block):
                 f"KuramotoGroup: assisted must be a 0-based index in [0, {n - 1}] or None, got {assisted!r}"
             )
         self.assisted = None if assisted is None else int(assisted)
-        theta0 = np.broadcast_to(finite_array(self, "theta0", theta0), (n,))
+        theta0 = finite_array(self, "theta0", theta0)
+        if theta0.shape not in ((), (n,)):
+            raise ValueError(f"KuramotoGroup: theta0 must be a number or of shape ({n},), got shape {theta0.shape}")
+        theta0 = np.broadcast_to(theta0, (n,))
         self.add_input("omega", shape=(n,), unit="rad/s", default=self.omega0, feedthrough=False)
         if self.assisted is not None:
             self.add_input("theta_l2", PHASE, feedthrough=False)

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from cogblocks.blocks.estimation import KalmanEstimator
 from cogblocks.sim import Block, Diagram, Signal
-from cogblocks.sim.params import finite_number
+from cogblocks.sim.params import finite_number, flag, unit_arg
 
 __all__ = ["KinematicPredictor", "L1"]
 
@@ -65,10 +65,8 @@ class KinematicPredictor(Block):
     ) -> None:
         super().__init__(period=period)
         self.horizon = finite_number(self, "horizon", horizon, low=0.0)
-        if not isinstance(smoothing, bool):
-            raise ValueError(f"KinematicPredictor: smoothing must be True or False, got {smoothing!r}")
-        self.smoothing = smoothing
-        position = Signal(shape=None, unit=unit)
+        self.smoothing = flag(self, "smoothing", smoothing)
+        position = Signal(shape=None, unit=unit_arg(self, "unit", unit))
         self.add_input("p", position)
         self.add_input("p_hat", position)
         self.add_input("v_hat", position.with_(unit=f"{unit}/s"))
@@ -136,6 +134,7 @@ class L1(Diagram):
     ) -> None:
         super().__init__(period=period)
         self.delay = finite_number(self, "delay", delay, low=0.0)
+        smoothing = flag(self, "smoothing", smoothing)
         if estimator is None:
             estimator = KalmanEstimator("ca")
         elif not isinstance(estimator, KalmanEstimator):

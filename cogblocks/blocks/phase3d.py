@@ -650,6 +650,7 @@ class PhaseEstimator3D(Diagram):
         super().__init__(period=period)
         self.velocity = one_of(self, "velocity", velocity, ("difference", "kalman"))
         self.kalman_model = one_of(self, "kalman_model", kalman_model, ("cv", "ca"))
+        reference = _as_curve("PhaseEstimator3D", "reference", reference, 2)
         if velocity == "kalman":
             front = self.add("kalman", KalmanEstimator(kalman_model, dims=3, unit="mm"))
         else:

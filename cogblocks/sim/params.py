@@ -8,7 +8,17 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["finite_array", "finite_number", "flag", "one_of", "positive_int", "random_generator"]
+__all__ = [
+    "finite_array",
+    "finite_number",
+    "flag",
+    "one_of",
+    "positive_int",
+    "random_generator",
+    "shape_arg",
+    "unit_arg",
+    "wrapped_arg",
+]
 
 
 def _owner(owner: object) -> str:
@@ -98,3 +108,36 @@ def random_generator(owner: object, name: str, seed: Any) -> np.random.Generator
             f"{_owner(owner)}: {name} must be None, an int >= 0, a SeedSequence or a Generator, got {seed!r}"
         )
     return np.random.default_rng(seed)
+
+
+def unit_arg(owner: object, name: str, value: Any, *, optional: bool = False) -> str | None:
+    """Return ``value`` if it is a unit string (or ``None`` when ``optional``), else raise ``ValueError``."""
+    if isinstance(value, str) or (optional and value is None):
+        return value
+    allowed = "a string or None" if optional else "a string"
+    raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {value!r}")
+
+
+def wrapped_arg(owner: object, name: str, value: Any, *, optional: bool = False) -> bool | None:
+    """Return ``value`` as a bool (or ``None`` when ``optional``), else raise ``ValueError``."""
+    if optional and value is None:
+        return None
+    if not isinstance(value, (bool, np.bool_)):
+        allowed = "a bool or None" if optional else "a bool"
+        raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {value!r}")
+    return bool(value)
+
+
+def shape_arg(owner: object, name: str, value: Any, *, optional: bool = False) -> tuple[int, ...] | None:
+    """Return ``value`` as a shape tuple (an int is a 1D shape; ``None`` when ``optional``), else raise."""
+    if optional and value is None:
+        return None
+    dims = (value,) if isinstance(value, (int, np.integer)) else value
+    try:
+        ok = all(isinstance(d, (int, np.integer)) and not isinstance(d, bool) and d >= 0 for d in dims)
+    except TypeError:
+        ok = False
+    if not ok:
+        allowed = "a tuple of non-negative ints" + (" or None" if optional else "")
+        raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {value!r}")
+    return tuple(int(d) for d in dims)

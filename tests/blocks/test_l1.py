@@ -123,7 +123,7 @@ def test_l1_is_a_diagram_of_estimator_and_predictor():
     [
         (lambda: L1(-0.1), r"L1: delay must be a finite number in \[0.0, inf\), got -0.1"),
         (lambda: L1(0.1, estimator="kalman"), r"L1: estimator must be a KalmanEstimator, got str"),
-        (lambda: L1(0.1, smoothing="yes"), r"KinematicPredictor: smoothing must be True or False, got 'yes'"),
+        (lambda: L1(0.1, smoothing="yes"), r"L1: smoothing must be True or False, got 'yes'"),
         (lambda: KinematicPredictor(float("inf")), r"KinematicPredictor: horizon must be a finite number .*inf"),
     ],
 )
