@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from cogblocks.blocks.samples import plausible
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import positive_int
 
@@ -50,8 +51,9 @@ class Buffer(Block):
 
     Notes
     -----
-    Bad data policy: a non-finite sample is stored as the last finite one (zeros before any), so
-    that sample numbers keep following the clock.
+    Bad data policy: a sample with a non-finite or implausible element (beyond 1 km or 1 km/s,
+    :func:`~cogblocks.blocks.samples.plausible`) is stored as the last good one (zeros before
+    any), so that sample numbers keep following the clock.
     """
 
     def __init__(self, capacity: int = 200, *, period: float | None = None) -> None:
@@ -74,8 +76,8 @@ class Buffer(Block):
     def output(self, k: int) -> None:
         row = self.received % self.capacity
         v, p = self.v.value, self.p.value
-        self.velocity.value[row] = v if np.all(np.isfinite(v)) else self.last_v
-        self.position.value[row] = p if np.all(np.isfinite(p)) else self.last_p
+        self.velocity.value[row] = v if plausible(v) else self.last_v
+        self.position.value[row] = p if plausible(p) else self.last_p
         self.count.value[...] = self.received + 1
         self.length.value[...] = min(self.received + 1, self.capacity)
 

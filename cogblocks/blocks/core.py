@@ -222,6 +222,13 @@ class UnitDelay(_Memory):
     shape, unit, wrapped : optional
         Spec of the signal; ``shape`` is needed only when a loop of generic blocks
         leaves it undetermined.
+
+    Notes
+    -----
+    Bad data policy: a pure shift, so a non-finite input element comes out
+    unchanged one step later and nothing else (the state is the last sample
+    only, so nothing is poisoned); blocks with memory downstream decide how to
+    treat it. Holding instead would hide a fault inside a feedback loop.
     """
 
     def __init__(

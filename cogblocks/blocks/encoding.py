@@ -35,6 +35,7 @@ import torch
 from torch import nn
 
 from cogblocks.blocks.buffer import ordered_window
+from cogblocks.blocks.samples import PLAUSIBLE, plausible
 from cogblocks.data.features import resample_movement
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim import Block, Signal
@@ -433,7 +434,11 @@ class EncoderClassifier(Block):
     Notes
     -----
     With samples lost off the start of a full ring, what is classified is the newest ``capacity``
-    samples. Bad data: the buffer upstream replaces non-finite samples.
+    samples.
+
+    Bad data policy: the buffer upstream replaces non-finite and implausible samples; fed
+    directly, a window holding a sample beyond 1 km/s
+    (:func:`~cogblocks.blocks.samples.plausible`) is not classified and the outputs hold.
     """
 
     def __init__(self, network: EncoderNet, *, rest_speed: float = REST_SPEED, period: float | None = None) -> None:
@@ -468,7 +473,10 @@ class EncoderClassifier(Block):
         return (1.0 / (1.0 + e) if z >= 0 else e / (1.0 + e)), length
 
     def output(self, k: int) -> None:
-        eps, length = self.classify(ordered_window(self.velocity.value, int(self.count.value)))
+        window = ordered_window(self.velocity.value, int(self.count.value))
+        if not plausible(window):
+            return
+        eps, length = self.classify(window)
         self.eps.value[...] = eps
         self.decision.value[...] = clip_decision(eps)
         self.length.value[...] = length
@@ -581,7 +589,12 @@ class LibraryProjector(Block):
     Notes
     -----
     The samples of a decision must still be in the buffer: ``interval`` may not exceed its
-    capacity. Bad data: the buffer upstream replaces non-finite samples.
+    capacity.
+
+    Bad data policy: the buffer upstream replaces non-finite and implausible samples; fed
+    directly, an element beyond 1 km/s (:func:`~cogblocks.blocks.samples.plausible`, NaN
+    included) counts as that bound with its sign, so the distances stay finite and the decision
+    follows the other samples.
     """
 
     def __init__(
@@ -649,7 +662,10 @@ class LibraryProjector(Block):
         if count - self.seen > len(ring):
             raise self._fail(f"samples {self.seen}…{count - 1} no longer fit the buffer of {len(ring)}")
         rows = np.arange(self.seen, count) % len(ring)
-        self.projection.accumulate(self.sums, ring[rows], self.seen)
+        samples = ring[rows]
+        if not plausible(samples):
+            samples = np.clip(np.nan_to_num(samples, nan=0.0), -PLAUSIBLE, PLAUSIBLE)
+        self.projection.accumulate(self.sums, samples, self.seen)
         self.seen = count
         self.eta = int(self._nearest_set[np.argmin(self.sums[self._nearest_set])])
         if self.ref < 0:
@@ -685,8 +701,9 @@ class VelocityBlender(Block):
 
     Notes
     -----
-    Bad data policy: a non-finite ``v_h`` or ``v_u`` gives a non-finite ``v_a``
-    (:class:`PositionComputer` then holds its position).
+    Bad data policy: a non-finite ``v_h`` or ``v_u``, or a non-finite ``v_r`` while it is
+    weighted (``c < 1``), gives a non-finite ``v_a`` (:class:`PositionComputer` then holds its
+    position); with ``c = 1`` the reference is not used at all.
     """
 
     def __init__(self, table: SolutionTable, *, period: float | None = None) -> None:
@@ -711,7 +728,8 @@ class VelocityBlender(Block):
         self.c.value[...] = c
         v_a = self.v_a.value
         np.multiply(c, self.v_h.value, out=v_a)
-        v_a += (1.0 - c) * self.v_r.value
+        if c != 1.0:  # (1 - c) * NaN would be NaN even where the reference has no weight
+            v_a += (1.0 - c) * self.v_r.value
         v_a += self.v_u.value
 
 

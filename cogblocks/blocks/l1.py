@@ -15,6 +15,8 @@ swapped (``l1.replace("kalman", ...)``) or probed (``"l1.kalman.v_hat"``)::
 
 from __future__ import annotations
 
+import numpy as np
+
 from cogblocks.blocks.estimation import KalmanEstimator
 from cogblocks.sim import Block, Diagram, Signal
 from cogblocks.sim.params import finite_number, flag, unit_arg
@@ -79,6 +81,7 @@ class KinematicPredictor(Block):
         if len(shapes) != 1:
             raise self._fail(f"p, p_hat, v_hat and a_hat must share one shape, got {sorted(shapes)}")
 
+    @np.errstate(invalid="ignore", over="ignore")  # a non-finite estimate passes (documented), silently
     def output(self, k: int) -> None:
         base = self.p_hat.value if self.smoothing or self.predicted.value else self.p.value
         tau = self.horizon

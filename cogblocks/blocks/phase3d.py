@@ -27,6 +27,7 @@ import scipy.signal
 
 from cogblocks.blocks.angles import TWO_PI, wrap_2pi
 from cogblocks.blocks.estimation import KalmanEstimator
+from cogblocks.blocks.samples import plausible
 from cogblocks.sim import ANY, Block, Diagram, Signal
 from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int, random_generator
 
@@ -59,15 +60,6 @@ _RESYNC = 3  # a later period overflowed the buffer: wait for the next wrap to s
 _EDGE_SHARE = 0.05
 _PADDED_PASSES = 2
 _PAD_CYCLES = 3
-
-# A coordinate (mm) or velocity (mm/s) beyond a kilometre is no hand motion: bad data, like NaN.
-_PLAUSIBLE = 1e6
-
-
-def _plausible(x: np.ndarray) -> bool:
-    """Finite and physically plausible (``abs(nan) < bound`` is False, so NaN fails too)."""
-    return bool(np.all(np.abs(x) < _PLAUSIBLE))
-
 
 # A degenerate reference axis: its spread is below this share of the largest spread.
 _DEGENERATE = 1e-9
@@ -314,7 +306,7 @@ class PeriodEstimator(Block):
 
     def update(self, k: int) -> None:
         p = self.p.value
-        if not _plausible(p):
+        if not plausible(p):
             return
         if self.stage == _WAITING:
             self._wait_for_motion(p)
@@ -451,7 +443,7 @@ class ReferenceCustomizer(Block):
         if count == self.count.value:
             return
         m = int(self.last_length.value)
-        if m < 2 or not _plausible(self.last_period.value[:m]):
+        if m < 2 or not plausible(self.last_period.value[:m]):
             return
         positions, velocities = _customize(self.reference, self.last_period.value[:m], self.dt)
         self.positions.value[:m] = positions
@@ -563,7 +555,7 @@ class PhaseComputer(Block):
     def output(self, k: int) -> None:
         self._next = (self.index, self.ref_count, self.full_distance)
         count = int(self.count.value)
-        if count == 0 or not (_plausible(self.p.value) and _plausible(self.v.value)):
+        if count == 0 or not (plausible(self.p.value) and plausible(self.v.value)):
             return
         m = int(self.length.value)
         w = self.window
@@ -724,7 +716,8 @@ class PositionComputer(Block):
 
     Notes
     -----
-    Bad data policy: a non-finite phase holds the last position.
+    Bad data policy: a non-finite phase, or a non-finite element in the reference sample it
+    selects, holds the last position (the reference may come from an upstream estimate).
     """
 
     def __init__(
@@ -755,7 +748,9 @@ class PositionComputer(Block):
         if not math.isfinite(theta):
             return
         i = math.floor(self.n_samples * theta / TWO_PI + 0.5) % self.n_samples
-        np.add(self.reference.value[i], self.noise, out=self.p.value)
+        sample = self.reference.value[i]
+        if np.isfinite(sample).all():
+            np.add(sample, self.noise, out=self.p.value)
 
     def update(self, k: int) -> None:
         self.noise = self._draw(self.rng)

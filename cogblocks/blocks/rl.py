@@ -18,6 +18,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from cogblocks.blocks.samples import plausible
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, positive_int
 
@@ -227,8 +228,9 @@ class RLCorrector(_Corrector):
 
     Notes
     -----
-    Bad data policy: a non-finite position keeps the last stored difference; a non-finite state
-    keeps the last action.
+    Bad data policy: a non-finite or implausible (beyond 1 km or 1 km/s,
+    :func:`~cogblocks.blocks.samples.plausible`) position keeps the last stored difference; such
+    a state keeps the last action.
     """
 
     def __init__(
@@ -254,10 +256,10 @@ class RLCorrector(_Corrector):
         np.multiply(self.gain * alpha, self.gap, out=self.v_u.value)
 
     def update(self, k: int) -> None:
-        gap = self.p_h.value - self.p_a.value
-        if np.all(np.isfinite(gap)):
-            self.gap[...] = gap
-        if (k // self.every + 1) % self.interval == 0:
+        positions_ok = plausible(self.p_h.value) and plausible(self.p_a.value)
+        if positions_ok:
+            np.subtract(self.p_h.value, self.p_a.value, out=self.gap)
+        deciding = (k // self.every + 1) % self.interval == 0
+        if deciding and positions_ok and plausible(self.v_h.value) and plausible(self.v_a.value):
             state = corrector_state(self.p_h.value, self.p_a.value, self.v_h.value, self.v_a.value, self.horizon.value)
-            if np.all(np.isfinite(state)):
-                self.action = int(self.network.act(state))
+            self.action = int(self.network.act(state))

@@ -397,7 +397,24 @@ register(
     ["*"],
     PASSES,
 )
-register(UnitDelay, generic(st.builds(UnitDelay, finite)), lambda b: {"u": floats(b.test_shape)}, ["u"])
+
+
+def _shifted(block, k, ins, outs, previous, seen):
+    """UnitDelay's policy: the output is exactly the previous tick's input, bad or not."""
+    expected = block._initial if k == 0 else seen[-2]["u"]
+    assert np.array_equal(outs["y"], np.broadcast_to(expected, np.shape(outs["y"])), equal_nan=True), (
+        f"UnitDelay.y = {outs['y']!r} at tick {k}, expected {expected!r}"
+    )
+
+
+register(
+    UnitDelay,
+    generic(st.builds(UnitDelay, finite)),
+    lambda b: {"u": floats(b.test_shape)},
+    ["u"],
+    # "a pure shift": a non-finite sample comes out one tick later, unchanged
+    Policy(nonfinite={"y": lambda ins, seen: len(seen) > 1 and bad(seen[-2]["u"])}, check=_shifted),
+)
 register(Integrator, generic(st.builds(Integrator, finite)), lambda b: {"u": floats(b.test_shape, "mm/s")}, ["u"])
 register(
     Saturation,
@@ -804,16 +821,31 @@ register(
     # a bad sample gives a bad velocity inside, on which the phase computer holds (checked on its own)
     Policy(check=check_held_at_zero),
 )
+def selected_sample(block, ins):
+    """The reference sample the phase selects: index round(N θ / 2π) mod N, halves up."""
+    n = block.n_samples
+    return ins["reference"][math.floor(n * float(ins["theta"]) / TWO_PI + 0.5) % n]
+
+
 register(
     PhasePositionComputer,
     st.builds(PhasePositionComputer, curve(min_size=1), noise_std=st.floats(0.0, 5.0), seed=seeds),
     lambda b: {"theta": phase(), "reference": floats((b.n_samples, 3), "mm", scale=150.0)},
     ["theta", "reference"],
-    # "a non-finite phase holds the last position"
-    Policy(holds={"p": input_bad("theta")}),
+    # "a non-finite phase, or a non-finite element in the reference sample it selects, holds the last position"
+    Policy(holds={"p": lambda block, ins, seen: bad(ins["theta"]) or bad(selected_sample(block, ins))}),
 )
 
 # -- PoP of Amplification (modules being written: registered when they import) -----------------------------
+
+
+def check_velocity_blender(block, k, ins, outs, previous, seen):
+    """v_a is non-finite only where the policy lets a bad input through; v_r has no say while c = 1."""
+    if not bad(outs["v_a"]):
+        return
+    assert bad(ins["v_h"]) or bad(ins["v_u"]) or outs["c"] < 1.0, (
+        f"VelocityBlender.v_a = {outs['v_a']!r} with c = {outs['c']} from a bad v_r alone, at tick {k} on {ins}"
+    )
 
 
 def check_classifier(block, k, ins, outs, previous, seen):
@@ -824,12 +856,53 @@ def check_classifier(block, k, ins, outs, previous, seen):
         assert math.isnan(outs["eps"]), f"ε̂ = {outs['eps']} before the movement started"
 
 
+# A hand neither sits nor moves a kilometre (per second) away: the Amplification blocks' bound of a good sample.
+KILOMETRE_MM = 1e6
+
+
+def usable(value) -> bool:
+    """Whether a sample is finite and below a kilometre (per second) in every element."""
+    value = np.asarray(value, dtype=float)
+    return bool(np.isfinite(value).all() and (np.abs(value) < KILOMETRE_MM).all())
+
+
+def check_classifier_holds(block, k, ins, outs, previous, seen):
+    """A window with a sample that is not usable is not classified: every output holds."""
+    from cogblocks.blocks.buffer import ordered_window
+
+    check_classifier(block, k, ins, outs, previous, seen)
+    if not usable(ordered_window(ins["velocity"], int(ins["count"]))):
+        for name in ("eps", "decision", "length"):
+            assert np.array_equal(outs[name], previous[name], equal_nan=True), (
+                f"EncoderClassifier.{name} = {outs[name]} does not hold {previous[name]} on a bad window at tick {k}"
+            )
+
+
+def check_projector(block, k, ins, outs, previous, seen):
+    """The running distances stay finite whatever the samples (bad ones count as the bound)."""
+    assert np.isfinite(block.sums).all(), f"LibraryProjector sums {block.sums} at tick {k}"
+
+
+def check_corrector(block, k, ins, outs, previous, seen):
+    """v_u = gain · α · (p_h − p_a) of the last usable positions; α changes only on a usable decision tick."""
+    if k == 0:
+        return
+    before = seen[:-1]
+    gaps = [i["p_h"] - i["p_a"] for i in before if usable(i["p_h"]) and usable(i["p_a"])]
+    gap = gaps[-1] if gaps else np.zeros(3)
+    np.testing.assert_allclose(outs["v_u"], block.gain * outs["alpha"] * gap, rtol=1e-12, atol=0.0)
+    last = before[-1]
+    decided = k % block.interval == 0 and all(usable(last[n]) for n in ("p_h", "p_a", "v_h", "v_a"))
+    if not decided:
+        assert np.array_equal(outs["alpha"], previous["alpha"]), f"α changed at tick {k} without a usable decision"
+
+
 def check_buffer(block, k, ins, outs, previous, seen):
-    """The newest row holds this tick's sample, or the last finite one (zeros before any)."""
+    """The newest row holds this tick's sample, or the last usable one (zeros before any)."""
     row = k % block.capacity
     for ring, name in (("velocity", "v"), ("position", "p")):
-        finite_samples = [past[name] for past in seen if not bad(past[name])]
-        expected = finite_samples[-1] if finite_samples else np.zeros(3)
+        good = [past[name] for past in seen if usable(past[name])]
+        expected = good[-1] if good else np.zeros(3)
         assert np.array_equal(outs[ring][row], expected), f"Buffer stored {outs[ring][row]} for {ins[name]}"
     assert outs["count"] == k + 1 and outs["length"] == min(k + 1, block.capacity)
 
@@ -859,7 +932,7 @@ def register_amplification() -> None:
         st.builds(buffer.Buffer, st.integers(1, 30)),
         lambda b: {"v": floats((3,), "mm/s", scale=500.0), "p": floats((3,), "mm", scale=150.0)},
         ["v", "p"],
-        # "a non-finite sample is stored as the last finite one (zeros before any)"
+        # "a sample with a non-finite or implausible element is stored as the last good one (zeros before any)"
         Policy(check=check_buffer),
     )
     register(
@@ -868,13 +941,10 @@ def register_amplification() -> None:
             st.builds(encoding.EncoderClassifier, st.just(network), rest_speed=st.floats(0.0, 10.0)),
             st.integers(1, 40).map(lambda c: (c, 3)),
         ),
-        lambda b: {
-            # "Bad data: the buffer upstream replaces non-finite samples": finite glitches only
-            "velocity": floats(b.test_shape, "mm/s", scale=500.0, finite_only=True),
-            "count": ints(buffer_count),
-        },
+        lambda b: {"velocity": floats(b.test_shape, "mm/s", scale=500.0), "count": ints(buffer_count)},
         ["velocity"],
-        Policy(nonfinite={"eps": lambda ins, seen: True}, check=check_classifier),
+        # "a window holding a sample beyond 1 km/s is not classified and the outputs hold"
+        Policy(nonfinite={"eps": lambda ins, seen: True}, check=check_classifier_holds),
     )
 
     @st.composite
@@ -891,11 +961,10 @@ def register_amplification() -> None:
     register(
         encoding.LibraryProjector,
         projector(),
-        lambda b: {
-            "velocity": floats(b.test_shape, "mm/s", scale=500.0, finite_only=True),  # as for the classifier
-            "count": ints(buffer_count),
-        },
+        lambda b: {"velocity": floats(b.test_shape, "mm/s", scale=500.0), "count": ints(buffer_count)},
         ["velocity"],
+        # "an element beyond 1 km/s (NaN included) counts as that bound with its sign"
+        Policy(check=check_projector),
     )
 
     def couple_velocity_blender(block, streams):
@@ -917,8 +986,8 @@ def register_amplification() -> None:
             "decisions": ints(counter),
         },
         ["v_h", "v_r", "v_u"],
-        # "a non-finite v_h or v_u gives a non-finite v_a"
-        Policy(nonfinite={"v_a": when_bad("v_h", "v_u")}),
+        # "a non-finite v_h or v_u, or a non-finite v_r while it is weighted (c < 1), gives a non-finite v_a"
+        Policy(nonfinite={"v_a": when_bad("v_h", "v_r", "v_u")}, check=check_velocity_blender),
         couple_velocity_blender,
     )
     register(
@@ -942,7 +1011,8 @@ def register_amplification() -> None:
         st.builds(rl.RLCorrector, st.just(corrector), gain=st.floats(0.1, 20.0), interval=st.integers(1, 10)),
         lambda b: corrector_feeds,
         ["p_h", "p_a", "v_h", "v_a"],
-        # "a non-finite position keeps the last stored difference; a non-finite state keeps the last action"
+        # "a non-finite or implausible position keeps the last stored difference; such a state keeps the last action"
+        Policy(check=check_corrector),
     )
 
 
@@ -964,24 +1034,7 @@ def _amplification(name: str) -> type | None:
     return None
 
 
-VIOLATIONS: dict[tuple[type | None, str], str] = {
-    (UnitDelay, "u"): f"{SILENT}, yet a NaN sample comes out one tick later",
-    (KinematicPredictor, "a_hat"): f"an infinite a_hat with horizon 0 computes 0 * inf: {WARNS} 'invalid value "
-    "encountered in multiply'",
-    (PhasePositionComputer, "reference"): "the policy covers theta only: a NaN in the reference input comes "
-    "out as a NaN position",
-    (_amplification("EncoderClassifier"), "velocity"): f"a 1e300 velocity overflows np.linalg.norm in "
-    f"movement_length: {WARNS} 'overflow encountered in multiply'",
-    (_amplification("LibraryProjector"), "velocity"): f"a 1e300 velocity overflows PrefixProjection.accumulate: "
-    f"{WARNS} 'overflow encountered in subtract'",
-    (_amplification("VelocityBlender"), "v_r"): "the policy covers v_h and v_u only: a NaN in v_r comes out of v_a, "
-    "even with c = 1 ((1 - c) * NaN is NaN)",
-    **{
-        (_amplification("RLCorrector"), port): f"a 1e300 {port} overflows the float32 cast of corrector_state: {WARNS} "
-        "'overflow encountered in cast' (the policy itself, keeping the last action, holds)"
-        for port in ("p_h", "p_a", "v_h", "v_a")
-    },
-}
+VIOLATIONS: dict[tuple[type | None, str], str] = {}
 
 
 # -- the tests ----------------------------------------------------------------------------------------------

@@ -1,0 +1,23 @@
+"""What counts as a usable motion sample: finite and physically plausible.
+
+Motion-capture streams carry NaN for lost markers, but a corrupted packet can also carry a finite
+number no hand reaches (1e300). Blocks of the 3D and Amplification chains treat both alike, as bad
+data, through :func:`plausible`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["PLAUSIBLE", "plausible"]
+
+#: A coordinate (mm) or velocity (mm/s) at or beyond a kilometre (per second) is no hand motion.
+PLAUSIBLE = 1e6
+
+
+def plausible(x: np.ndarray) -> bool:
+    """Whether every element is finite and below :data:`PLAUSIBLE` in magnitude.
+
+    ``abs(nan) < PLAUSIBLE`` is False, so NaN fails as well as ±inf.
+    """
+    return bool(np.all(np.abs(x) < PLAUSIBLE))
