@@ -62,6 +62,10 @@ class Constant(Block):
         Unit of the output.
     wrapped : bool
         Whether the value is an angle wrapped to one turn.
+
+    Notes
+    -----
+    Bad data policy: no inputs; a non-finite value is refused when built.
     """
 
     def __init__(self, value: Any, *, unit: str = "1", wrapped: bool = False, period: float | None = None) -> None:
@@ -290,7 +294,12 @@ class Integrator(_Memory):
 class Saturation(Block):
     """Clip the input to ``[lower, upper]``.
 
-    Ports: input ``u``, output ``y`` (spec of ``u``). NaN passes through as NaN.
+    Ports: input ``u``, output ``y`` (spec of ``u``).
+
+    Notes
+    -----
+    Bad data policy: stateless and element-wise; NaN passes through as NaN
+    on the same tick, and ±inf is clipped to the bounds like any other value.
     """
 
     def __init__(self, lower: float, upper: float, *, period: float | None = None) -> None:
@@ -394,6 +403,12 @@ class Function(Block):
     feedthrough : bool
         Whether the outputs depend on the inputs of the same tick (default True).
 
+    Notes
+    -----
+    Bad data policy: the callable's own. The block outputs exactly what the
+    callable returns and adds no check, so a callable that must not emit NaN
+    has to test its inputs itself.
+
     Examples
     --------
     >>> from cogblocks.sim import Signal
@@ -467,8 +482,8 @@ class Playback(Block):
 
     Notes
     -----
-    NaN rows are played as they are: Playback is how bad data gets into a
-    diagram on purpose.
+    Bad data policy: NaN rows are played as they are; Playback is how bad data
+    gets into a diagram on purpose.
     """
 
     def __init__(
@@ -510,6 +525,10 @@ class Probe(Block):
     """Mark a signal for recording; the Simulator records every Probe under its path.
 
     Ports: input ``u`` (any spec).
+
+    Notes
+    -----
+    Bad data policy: records what it is given, NaN included; it has no output.
     """
 
     def __init__(self) -> None:

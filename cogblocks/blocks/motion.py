@@ -178,6 +178,12 @@ class MotionComputer(_MotionPorts):
         ``ω_L3[−1]``; the deliverable's choice is the mean natural frequency.
     adjacency : "ring" or array_like
         The group's graph; row ``assisted`` couples the oscillator.
+
+    Notes
+    -----
+    Bad data policy: on a tick with a non-finite phase or λ the policy is not
+    asked (it only ever sees finite contexts) and the oscillator coasts at its
+    last frequency, without coupling.
     """
 
     _theta_feedthrough = False
@@ -215,13 +221,13 @@ class MotionComputer(_MotionPorts):
         self.theta_ref.value[...] = self.theta_l3
 
     def update(self, k: int) -> None:
-        theta = self.theta.value
-        if not np.all(np.isfinite(theta)):
+        theta, lam = self.theta.value, float(self.lam.value)
+        if not (np.all(np.isfinite(theta)) and math.isfinite(lam)):
             # no trustworthy context: keep the frequency, coast on the oscillator's own rate
             self.theta_l3 = wrap_angle(self.theta_l3 + self.dt * self.omega_prev)
             return
         obs = l3_observation(self.theta_l3, theta[self.others], self.omega_prev)
-        context = L3Context(k, obs, theta.copy(), self.theta_l3, float(self.lam.value), self.omega_prev)
+        context = L3Context(k, obs, theta.copy(), self.theta_l3, lam, self.omega_prev)
         action = self.policy.act(context)
         omega = min(max(self.omega_prev + ACTIONS[action], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
         pull = float(np.dot(self.coupling, np.sin(theta - self.theta_l3)))

@@ -320,9 +320,8 @@ class PhaseEstimator(Diagram):
     the low-pass filter: its ``p_hat``, ``v_hat`` and ``a_hat`` feed the algorithm, which then takes
     no differences and compensates no lag (``cutoff``, ``order``, ``compensate`` and
     ``accel_window`` are unused). Other noise parameters: ``replace("kalman", KalmanEstimator(...))``.
-    See
-    :class:`Algorithm1Phase` for the algorithm and the bad-data policy; ``docs/phase-estimation-1d.md``
-    for the measurements behind the defaults.
+    See :class:`Algorithm1Phase` for the algorithm; ``docs/phase-estimation-1d.md`` for the
+    measurements behind the defaults.
 
     Ports
     -----
@@ -358,6 +357,12 @@ class PhaseEstimator(Diagram):
         As in :class:`Algorithm1Phase`.
     period : float, optional
         Period of both blocks, in seconds.
+
+    Notes
+    -----
+    Bad data policy: that of :class:`Algorithm1Phase`, which reads the raw position with either
+    front end: a NaN or inf sample is skipped and ``theta``, ``amp_p`` and ``amp_v`` hold; the
+    phase is never NaN.
 
     Examples
     --------

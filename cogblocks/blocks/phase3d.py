@@ -619,6 +619,12 @@ class PhaseEstimator3D(Diagram):
         Backward differences of the raw position (default) or the Kalman front end above.
     kalman_model : {"cv", "ca"}
         Model of that Kalman filter (``"ca"`` by default); unused with ``velocity="difference"``.
+
+    Notes
+    -----
+    Bad data policy: a non-finite or implausible (beyond 1 km) sample gives a bad velocity inside,
+    on which the period estimator skips the sample and the phase computer holds the phase; with
+    ``velocity="kalman"`` the filter predicts through it instead. ``theta`` is never NaN.
     """
 
     def __init__(

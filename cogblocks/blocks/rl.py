@@ -190,7 +190,12 @@ class _Corrector(Block):
 
 
 class NoCorrection(_Corrector):
-    """The corrector that never corrects: ``v_u = 0``, ``α = 0`` (ports of :class:`RLCorrector`)."""
+    """The corrector that never corrects: ``v_u = 0``, ``α = 0`` (ports of :class:`RLCorrector`).
+
+    Notes
+    -----
+    Bad data policy: the inputs are not read, so the outputs are zero whatever they carry.
+    """
 
     def __init__(self, *, period: float | None = None) -> None:
         super().__init__(period)
