@@ -46,6 +46,7 @@ from cogblocks.blocks.encoding import (
     movement_length,
     resampling_matrix,
 )
+from cogblocks.blocks.samples import plausible
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of, positive_int
@@ -367,9 +368,12 @@ class OptimalBlender(Block):
     -----
     The solve runs in the output phase of the decision's tick (it needs the projector's new
     decision) and is committed in the update phase. :attr:`results` is a record of the decisions
-    since the last reset, not block state: restoring a snapshot does not rewind it. Bad data: a
-    non-finite ``v_h`` gives a non-finite ``v_a``, as in :class:`VelocityBlender`, and is recorded as
-    zero for later plans.
+    since the last reset, not block state: restoring a snapshot does not rewind it.
+
+    Bad data policy: a non-finite ``v_h`` or ``v_u`` gives a non-finite ``v_a`` on that tick, as in
+    :class:`VelocityBlender` (``v_r`` only counts while the table's ``c`` < 1 is in force); for later
+    plans a non-finite or implausible sample (beyond 1 km/s,
+    :func:`~cogblocks.blocks.samples.plausible`) is recorded as zero, so the solver never sees it.
     """
 
     def __init__(
@@ -469,8 +473,11 @@ class OptimalBlender(Block):
             v_a[...] = v_h + state["plan"][t] if t < state["end"] else 0.0
             self.c.value[...] = _equivalent_c(v_a, v_h, v_r)
         elif math.isfinite(state["table_c"]):
-            self.c.value[...] = state["table_c"]
-            v_a[...] = state["table_c"] * v_h + (1.0 - state["table_c"]) * v_r
+            c = state["table_c"]
+            self.c.value[...] = c
+            np.multiply(c, v_h, out=v_a)
+            if c != 1.0:  # as in VelocityBlender: no weight, no say (0 * NaN is NaN)
+                v_a += (1.0 - c) * v_r
         else:
             self.c.value[...] = 1.0
             v_a[...] = v_h
@@ -487,8 +494,8 @@ class OptimalBlender(Block):
                 else:
                     getattr(self, name)[...] = value  # in place: restored snapshots keep the arrays
         if t < len(self.human):
-            self.human[t] = np.nan_to_num(self.v_h.value, nan=0.0, posinf=0.0, neginf=0.0)
-            self.altered[t] = np.nan_to_num(self.v_a.value, nan=0.0, posinf=0.0, neginf=0.0)
+            self.human[t] = self.v_h.value if plausible(self.v_h.value) else 0.0
+            self.altered[t] = self.v_a.value if plausible(self.v_a.value) else 0.0
 
     # --- one decision ---------------------------------------------------------------------------------
 

@@ -754,8 +754,9 @@ class PositionComputer(Block):
     This is the Amplification position block; the phase-to-position block of section 6.2 is
     :class:`cogblocks.blocks.phase3d.PositionComputer`.
 
-    Bad data policy: a non-finite velocity holds the position; integration starts at the first
-    finite ``p_start``.
+    Bad data policy: a non-finite or implausible (beyond 1 km/s,
+    :func:`~cogblocks.blocks.samples.plausible`) velocity holds the position; integration starts
+    at the first ``p_start`` that is finite and plausible.
     """
 
     def __init__(self, *, period: float | None = None) -> None:
@@ -769,15 +770,15 @@ class PositionComputer(Block):
     def output(self, k: int) -> None:
         p = self.p.value
         if not self.started:
-            if np.all(np.isfinite(self.p_start.value)):
+            if plausible(self.p_start.value):
                 p[...] = self.p_start.value
-        elif np.all(np.isfinite(self.v.value)):
+        elif plausible(self.v.value):
             np.multiply(self.dt, self.v.value, out=p)
             p += self.last
         else:
             p[...] = self.last
 
     def update(self, k: int) -> None:
-        if self.started or np.all(np.isfinite(self.p_start.value)):
+        if self.started or plausible(self.p_start.value):
             self.last[...] = self.p.value
             self.started = True

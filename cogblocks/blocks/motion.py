@@ -114,6 +114,7 @@ class _MotionPorts(Block):
             raise ValueError(
                 f"{type(self).__name__}: assisted must be a 0-based index in [0, {n - 1}], got {assisted!r}"
             )
+        self.n, self.assisted = n, int(assisted)
         self.add_input("theta", PHASE.with_(shape=(n,)), feedthrough=self._theta_feedthrough)
         self.add_input("lam", Signal(unit="rad"), default=math.pi, feedthrough=False)
         self.add_output("theta_ref", PHASE)
@@ -203,7 +204,6 @@ class MotionComputer(_MotionPorts):
         if not callable(getattr(policy, "act", None)):
             raise ValueError(f"MotionComputer: policy must have an act(context) method, got {policy!r}")
         self.policy = policy
-        self.assisted = assisted
         self.gain = finite_number(self, "gain", gain, low=0.0)
         self.omega_init = finite_number(self, "omega_init", omega_init, low=-OMEGA_L3_LIMIT, high=OMEGA_L3_LIMIT)
         adjacency = ring_adjacency(n) if isinstance(adjacency, str) and adjacency == "ring" else adjacency

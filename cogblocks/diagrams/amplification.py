@@ -34,7 +34,7 @@ from cogblocks.blocks.estimation import KalmanEstimator
 from cogblocks.blocks.rl import CorrectorNet, NoCorrection, RLCorrector, load_corrector
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 from cogblocks.sim import Block, Diagram, Simulator
-from cogblocks.sim.params import finite_number, one_of
+from cogblocks.sim.params import block_with_ports, finite_number, one_of, positive_int
 
 __all__ = [
     "PAPER",
@@ -90,11 +90,18 @@ class L2Amplification(Diagram):
     e_des : {0, 1}
         1 encodes fear, 0 removes it (the fear and no-fear sets swap roles).
     interval : int
-        ΔT, samples between two decisions.
+        ΔT, samples between two decisions (at most ``capacity``).
     capacity : int
         Samples kept by the buffer.
     candidates : array_like of bool, optional
-        Library movements the projector may choose.
+        Library movements the projector may choose, as in
+        :class:`~cogblocks.blocks.encoding.LibraryProjector`.
+
+    Notes
+    -----
+    Bad data policy: that of the blocks inside. The buffer stores a non-finite or implausible
+    sample as the last good one, so the search and the corrector never see it; the blend passes a
+    non-finite ``v_h`` to ``v_a`` on that tick, and the position then holds.
     """
 
     def __init__(
@@ -110,9 +117,32 @@ class L2Amplification(Diagram):
         candidates: Any = None,
     ) -> None:
         super().__init__()
-        one_of("L2Amplification", "e_des", e_des, (0, 1))
-        if table.e_des != e_des:
-            raise ValueError(f"L2Amplification: the table is for e_des={table.e_des}, the architecture for {e_des}")
+        if not isinstance(library, ReachLibrary):
+            raise ValueError(f"L2Amplification: library must be a ReachLibrary, got {type(library).__name__}")
+        e_des = one_of(self, "e_des", e_des, (0, 1))
+        if not isinstance(table, SolutionTable) or table.e_des != e_des:
+            raise ValueError(
+                f"L2Amplification: table must be a SolutionTable for e_des={e_des}, "
+                f"got {type(table).__name__} for e_des={getattr(table, 'e_des', None)}"
+            )
+        capacity = positive_int(self, "capacity", capacity)
+        interval = positive_int(self, "interval", interval)
+        if interval > capacity:
+            raise ValueError(
+                f"L2Amplification: interval must be an integer in [1, capacity={capacity}], got {interval}"
+            )
+        if blending is not None:
+            block_with_ports(
+                self,
+                "blending",
+                blending,
+                inputs=("v_h", "v_r", "v_u", "nearest", "reference", "decisions"),
+                outputs=("v_a", "c"),
+            )
+        if corrector is not None:
+            block_with_ports(
+                self, "corrector", corrector, inputs=("p_h", "p_a", "v_h", "v_a", "horizon"), outputs=("v_u", "alpha")
+            )
         buffer = self.add("buffer", Buffer(capacity))
         projector = self.add(
             "projector", LibraryProjector(library, e_des=e_des, interval=interval, candidates=candidates)

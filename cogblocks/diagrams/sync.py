@@ -22,7 +22,7 @@ from cogblocks.blocks import (
 from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.sim import Block, Diagram, Simulator
-from cogblocks.sim.params import one_of
+from cogblocks.sim.params import block_with_ports, one_of, positive_int
 
 __all__ = ["L2Sync", "MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync"]
 
@@ -46,13 +46,30 @@ class L2Sync(Diagram):
         A motion computer (ports ``theta``, ``lam`` → ``theta_ref``), e.g.
         :class:`~cogblocks.blocks.motion.MotionComputer`.
     assisted : int
-        0-based index of the assisted participant.
-    blender : Blender, optional
-        The deliverable's blender by default.
+        0-based index of the assisted participant; the motion computer's own, if it has one.
+    blender : Block, optional
+        A blending rule with the ports of :class:`~cogblocks.blocks.Blender` (``theta_l0``,
+        ``theta_ref`` → ``theta_l2``, ``lam``); the deliverable's blender by default.
+
+    Notes
+    -----
+    Bad data policy: that of the blocks inside. With the library's motion computers and
+    blender a non-finite phase never reaches ``theta_l2``, ``theta_ref`` or ``lam`` (the
+    motion computer leaves it out or coasts, the blender holds or passes θ_L0 unaltered);
+    ``theta_l0``, the assisted participant's phase as given, shows it.
     """
 
-    def __init__(self, motion: Block, assisted: int, blender: Blender | None = None) -> None:
+    def __init__(self, motion: Block, assisted: int, blender: Block | None = None) -> None:
         super().__init__()
+        block_with_ports(self, "motion", motion, inputs=("theta", "lam"), outputs=("theta_ref",))
+        assisted = positive_int(self, "assisted", assisted, minimum=0)
+        own = getattr(motion, "assisted", assisted)
+        n = getattr(motion, "n", None)
+        if own != assisted or (n is not None and assisted >= n):
+            allowed = f"the motion computer's assisted index {own}" if own != assisted else f"an index below n = {n}"
+            raise ValueError(f"L2Sync: assisted must be {allowed}, got {assisted!r}")
+        if blender is not None:
+            block_with_ports(self, "blender", blender, inputs=("theta_l0", "theta_ref"), outputs=("theta_l2", "lam"))
         select = self.add("select_l0", Select(assisted))
         self.add("motion", motion)
         blend = self.add("blender", blender if blender is not None else Blender())

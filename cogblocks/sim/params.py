@@ -8,7 +8,10 @@ from typing import Any
 
 import numpy as np
 
+from cogblocks.sim.block import Block
+
 __all__ = [
+    "block_with_ports",
     "finite_array",
     "finite_number",
     "flag",
@@ -141,3 +144,27 @@ def shape_arg(owner: object, name: str, value: Any, *, optional: bool = False) -
         allowed = "a tuple of non-negative ints" + (" or None" if optional else "")
         raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {value!r}")
     return tuple(int(d) for d in dims)
+
+
+def block_with_ports(
+    owner: object, name: str, value: Any, *, inputs: Iterable[str] = (), outputs: Iterable[str] = ()
+) -> Any:
+    """Return ``value`` if it is a Block with the named ports, else raise ``ValueError``.
+
+    What a composite block checks of a block it is given to plug in (a motion computer, a
+    corrector), so that a wrong one is refused when built rather than at ``connect``.
+    """
+    ins, outs = list(inputs), list(outputs)
+    wanted = " and ".join(
+        part for part in (f"inputs {ins}" if ins else "", f"outputs {outs}" if outs else "") if part
+    )
+    allowed = f"a Block with {wanted}" if wanted else "a Block"
+    if not isinstance(value, Block):
+        raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {type(value).__name__}")
+    missing = [f"input {p!r}" for p in ins if p not in value.inputs]
+    missing += [f"output {p!r}" for p in outs if p not in value.outputs]
+    if missing:
+        raise ValueError(
+            f"{_owner(owner)}: {name} must be {allowed}, got {type(value).__name__} without {', '.join(missing)}"
+        )
+    return value

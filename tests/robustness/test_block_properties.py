@@ -191,6 +191,8 @@ class Policy:
         may be non-finite (never, for outputs not listed).
     holds : output -> ``holds(block, inputs of the tick, inputs of every tick so far)``: when the output
         keeps its previous value.
+    outside : output -> ``allowed(inputs of the tick, inputs of every tick so far)``: when a finite value of
+        that wrapped output may lie outside [0, 2π) (a phase passed on as given).
     check : an extra assertion ``check(block, k, inputs, outputs, previous outputs, inputs so far)``.
     raises : documented exceptions, which end the run; ``raises_when(block, k, exception)`` says whether
         this one was due (and its message clear).
@@ -198,6 +200,7 @@ class Policy:
 
     nonfinite: dict[str, Callable[[dict, list], bool]] = field(default_factory=dict)
     holds: dict[str, Callable[[Any, dict, list], bool]] = field(default_factory=dict)
+    outside: dict[str, Callable[[dict, list], bool]] = field(default_factory=dict)
     check: Callable[..., None] | None = None
     raises: tuple[type[BaseException], ...] = ()
     raises_when: Callable[[Any, int, BaseException], bool] = lambda block, k, exc: False
@@ -288,8 +291,9 @@ def drive(block, feeds: dict[str, Feed], streams: dict[str, np.ndarray], n: int,
             if value.dtype.kind == "f" and bad(value):
                 allowed = policy.nonfinite.get(out)
                 assert allowed is not None and allowed(ins, seen), f"non-finite output {where}"
-            if wrapped[out] and not bad(value):
-                assert np.all((value >= 0.0) & (value < TWO_PI)), f"phase outside [0, 2π): {where}"
+            if wrapped[out] and not bad(value) and not np.all((value >= 0.0) & (value < TWO_PI)):
+                allowed = policy.outside.get(out)
+                assert allowed is not None and allowed(ins, seen), f"phase outside [0, 2π): {where}"
             holds = policy.holds.get(out)
             if holds is not None and holds(block, ins, seen):
                 assert np.array_equal(value, previous[out], equal_nan=True), f"{where} does not hold {previous[out]!r}"
@@ -673,6 +677,44 @@ register(
     ["theta", "lam"],
 )
 
+
+def check_l2_sync(block, k, ins, outs, previous, seen):
+    """theta_l0 is the assisted participant's phase exactly as given."""
+    given = ins["theta"][block["motion"].assisted]
+    assert np.array_equal(outs["theta_l0"], given, equal_nan=True), f"theta_l0 = {outs['theta_l0']}, given {given}"
+
+
+@st.composite
+def l2_sync(draw):
+    from cogblocks.diagrams.sync import L2Sync
+
+    if draw(st.booleans()):
+        motion = draw(motion_computer())
+    else:
+        n = draw(st.integers(2, 6))
+        motion = MeanPhaseMotion(n, draw(st.integers(0, n - 1)))
+    return L2Sync(motion, motion.assisted, blender=draw(st.none() | stable_blender()))
+
+
+def register_l2_sync() -> None:
+    from cogblocks.diagrams.sync import L2Sync
+
+    register(
+        L2Sync,
+        l2_sync(),
+        lambda b: {"theta": phase((b["motion"].n,))},
+        ["theta"],
+        # "a non-finite phase never reaches theta_l2, theta_ref or lam; theta_l0 (the phase as given) shows it"
+        Policy(
+            nonfinite={"theta_l0": when_bad("theta")},
+            outside={"theta_l0": lambda ins, seen: True},  # as given: check_l2_sync asserts it is the input
+            check=check_l2_sync,
+        ),
+    )
+
+
+register_l2_sync()
+
 # -- sensor streams and L1 ----------------------------------------------------------------------------------
 
 POSITION_SHAPES = st.sampled_from([(), (1,), (3,)])
@@ -863,6 +905,20 @@ def check_velocity_blender(block, k, ins, outs, previous, seen):
     )
 
 
+def check_l2_amplification(block, k, ins, outs, previous, seen):
+    """The altered position stays a position a hand can have, whatever the human samples."""
+    assert usable(outs["p_a"]), f"L2Amplification.p_a = {outs['p_a']} at tick {k} on {ins}"
+
+
+def check_optimal_blender(block, k, ins, outs, previous, seen):
+    """What later plans are built on stays usable; v_r makes v_a non-finite only where it has weight."""
+    t = k // block.every
+    if t < len(block.human):
+        assert usable(block.human[t]) and usable(block.altered[t]), f"OptimalBlender recorded a bad sample at {t}"
+    if bad(outs["v_a"]) and not (bad(ins["v_h"]) or bad(ins["v_u"])):
+        assert block.end == 0 and outs["c"] < 1.0, f"OptimalBlender.v_a = {outs['v_a']} from a bad v_r alone"
+
+
 def check_classifier(block, k, ins, outs, previous, seen):
     """ε̂ is NaN exactly while nothing is classified ("NaN until the movement has started"), else in [0, 1]."""
     if outs["length"] > 0:
@@ -1010,8 +1066,13 @@ def register_amplification() -> None:
         st.builds(encoding.PositionComputer),
         lambda b: {"v": floats((3,), "mm/s", scale=500.0), "p_start": floats((3,), "mm", scale=150.0)},
         ["v", "p_start"],
-        # "a non-finite velocity holds the position; integration starts at the first finite p_start"
-        Policy(holds={"p": lambda block, ins, seen: bad(ins["v"]) and not all(bad(i["p_start"]) for i in seen[:-1])}),
+        # "a non-finite or implausible velocity holds the position; integration starts at the first p_start that
+        # is finite and plausible"
+        Policy(
+            holds={
+                "p": lambda block, ins, seen: not usable(ins["v"]) and any(usable(i["p_start"]) for i in seen[:-1])
+            }
+        ),
     )
     corrector_feeds = {
         "p_h": floats((3,), "mm", scale=150.0),
@@ -1030,6 +1091,48 @@ def register_amplification() -> None:
         Policy(check=check_corrector),
     )
 
+    from cogblocks.analysis.optimal_blending import OptimalBlender
+    from cogblocks.diagrams.amplification import L2Amplification
+
+    @st.composite
+    def l2_amplification(draw):
+        capacity = draw(st.integers(10, 60))
+        corrector_block = draw(st.sampled_from([None, "rl"]))
+        return L2Amplification(
+            library,
+            table,
+            corrector=rl.RLCorrector(corrector) if corrector_block else None,
+            interval=draw(st.integers(1, 10)),
+            capacity=capacity,
+        )
+
+    register(
+        L2Amplification,
+        l2_amplification(),
+        lambda b: {"v_h": floats((3,), "mm/s", scale=500.0), "p_h": floats((3,), "mm", scale=150.0)},
+        ["v_h", "p_h"],
+        # "the buffer stores a bad sample as the last good one; the blend passes a non-finite v_h to v_a on that
+        # tick, and the position then holds"
+        Policy(nonfinite={"v_a": when_bad("v_h")}, check=check_l2_amplification),
+    )
+    register(
+        OptimalBlender,
+        st.builds(OptimalBlender, st.just(library), st.just(network), st.just(table), time_limit_ms=st.just(50.0)),
+        lambda b: {
+            "v_h": floats((3,), "mm/s", scale=500.0),
+            "v_r": floats((3,), "mm/s", scale=500.0),
+            "v_u": floats((3,), "mm/s", scale=50.0),
+            "nearest": zeros,
+            "reference": zeros,
+            "decisions": ints(counter),
+        },
+        ["v_h", "v_r", "v_u"],
+        # "a non-finite v_h or v_u gives a non-finite v_a on that tick (v_r only counts while the table's c < 1 is in
+        # force); a non-finite or implausible sample is recorded as zero for later plans"
+        Policy(nonfinite={"v_a": when_bad("v_h", "v_r", "v_u")}, check=check_optimal_blender),
+        couple_velocity_blender,
+    )
+
 
 register_amplification()
 
@@ -1044,10 +1147,22 @@ VIOLATIONS: dict[tuple[type | None, str], str] = {}
 # -- the tests ----------------------------------------------------------------------------------------------
 
 
+# public blocks outside cogblocks.blocks.__all__: the torch-backed blocks, the L2 architectures as blocks
+# and the optimisation-based blender
+PUBLIC_MODULES = (
+    "cogblocks.blocks.encoding",
+    "cogblocks.blocks.buffer",
+    "cogblocks.blocks.rl",
+    "cogblocks.diagrams.sync",
+    "cogblocks.diagrams.amplification",
+    "cogblocks.analysis.optimal_blending",
+)
+
+
 def public_blocks() -> set[type]:
     """Block classes of ``cogblocks.blocks.__all__`` and of the public modules not re-exported there."""
     exported = [getattr(blocks_pkg, name) for name in blocks_pkg.__all__]
-    for module in ("cogblocks.blocks.encoding", "cogblocks.blocks.buffer", "cogblocks.blocks.rl"):
+    for module in PUBLIC_MODULES:
         try:
             mod = importlib.import_module(module)
         except ImportError:  # pragma: no cover - not written yet

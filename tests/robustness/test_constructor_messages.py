@@ -27,7 +27,16 @@ import pytest
 import cogblocks.blocks as blocks_pkg
 from cogblocks.sim import Block, Signal
 
-OPTIONAL_MODULES = ("cogblocks.blocks.encoding", "cogblocks.blocks.buffer", "cogblocks.blocks.rl")
+# public blocks outside cogblocks.blocks.__all__: the torch-backed blocks, the L2 architectures as blocks
+# and the optimisation-based blender
+OPTIONAL_MODULES = (
+    "cogblocks.blocks.encoding",
+    "cogblocks.blocks.buffer",
+    "cogblocks.blocks.rl",
+    "cogblocks.diagrams.sync",
+    "cogblocks.diagrams.amplification",
+    "cogblocks.analysis.optimal_blending",
+)
 
 
 def public_blocks() -> dict[str, type]:
@@ -79,6 +88,12 @@ class _Policy:
         return 5
 
 
+def _mean_motion():
+    from cogblocks.blocks import MeanPhaseMotion
+
+    return MeanPhaseMotion(3, 1)
+
+
 def _discrete_system(dt=0.01):
     import control
 
@@ -110,6 +125,9 @@ BASES: dict[str, Callable[[], dict[str, Any]]] = {
     "EncoderClassifier": lambda: {"network": _tiny_network()},
     "LibraryProjector": lambda: {"library": _tiny_library()},
     "VelocityBlender": lambda: {"table": _tiny_table()},
+    "sync.L2Sync": lambda: {"motion": _mean_motion(), "assisted": 1},
+    "amplification.L2Amplification": lambda: {"library": _tiny_library(), "table": _tiny_table()},
+    "optimal_blending.OptimalBlender": lambda: {"library": _tiny_library(), "network": _tiny_network()},
 }
 
 # Parameters documented as passed through to an inner block, whose message may name that block.
@@ -122,6 +140,7 @@ PASS_THROUGH: dict[str, dict[str, str]] = {
     )
     | dict.fromkeys(("search", "window", "jump_factor", "distance_floor", "velocity_weight"), "PhaseComputer"),
     "LibraryProjector": dict.fromkeys(("metric", "dtype"), "PrefixProjection"),
+    "amplification.L2Amplification": {"candidates": "LibraryProjector"},
 }
 
 
@@ -305,6 +324,33 @@ CASES = [
     case("RLCorrector", "network", 5, "CorrectorNet", given="int"),
     case("RLCorrector", "gain", 0.0, "(0.0, inf)"),
     case("RLCorrector", "interval", 0, "integer >= 1"),
+    # the L2 architectures as blocks
+    case("sync.L2Sync", "motion", 5, "inputs ['theta', 'lam'] and outputs ['theta_ref']", given="int"),
+    case("sync.L2Sync", "assisted", -1, "integer >= 0"),
+    case("sync.L2Sync", "assisted", 0, "assisted index 1"),
+    case("sync.L2Sync", "blender", 5, "outputs ['theta_l2', 'lam']", given="int"),
+    case("amplification.L2Amplification", "library", 5, "ReachLibrary", given="int"),
+    case("amplification.L2Amplification", "table", 5, "SolutionTable for e_des=1", given="int"),
+    case("amplification.L2Amplification", "corrector", 5, "outputs ['v_u', 'alpha']", given="int"),
+    case("amplification.L2Amplification", "blending", 5, "outputs ['v_a', 'c']", given="int"),
+    case("amplification.L2Amplification", "e_des", 2, "one of [0, 1]"),
+    case("amplification.L2Amplification", "interval", 300, "[1, capacity=200]"),
+    case("amplification.L2Amplification", "capacity", 0, "integer >= 1"),
+    case("amplification.L2Amplification", "candidates", [True], "shape (6,)", given="(1,)"),
+    # optimisation-based blending
+    case("optimal_blending.OptimalBlender", "library", 5, "ReachLibrary", given="int"),
+    case("optimal_blending.OptimalBlender", "network", 5, "EncoderNet", given="int"),
+    case("optimal_blending.OptimalBlender", "table", 5, "SolutionTable for e_des=1", given="int"),
+    case("optimal_blending.OptimalBlender", "e_des", -1, "one of [0, 1]"),
+    case("optimal_blending.OptimalBlender", "margin", 0.5, "[0.0, 0.09"),
+    case("optimal_blending.OptimalBlender", "delta_pos", 0.0, "(0.0, inf)"),
+    case("optimal_blending.OptimalBlender", "terminal_margin", 25.0, "[0.0, 20.0)"),
+    case("optimal_blending.OptimalBlender", "end_speed", -1.0, "[0.0, inf)"),
+    case("optimal_blending.OptimalBlender", "knot_spacing", 0, "integer >= 1"),
+    case("optimal_blending.OptimalBlender", "time_limit_ms", 0.0, "(0.0, inf)"),
+    case("optimal_blending.OptimalBlender", "solver", "bonmin", "one of ['sqpmethod', 'ipopt']"),
+    case("optimal_blending.OptimalBlender", "sharpness", math.inf, "(0.0, inf)"),
+    case("optimal_blending.OptimalBlender", "rest_speed", -1.0, "[0.0, inf)"),
 ]
 
 
