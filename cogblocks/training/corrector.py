@@ -34,12 +34,12 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torch import nn
 
 from cogblocks.blocks.encoding import library_fingerprint
 from cogblocks.blocks.rl import ACTIONS, STATE_SIZE, CorrectorNet
 from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup
 from cogblocks.training.amplification_env import AmplificationEnv, Episodes, record_episodes
+from cogblocks.training.dqn import DQNLearner, ReplayBuffer
 
 __all__ = ["CorrectorConfig", "TrainingResult", "evaluate", "main", "train"]
 
@@ -101,29 +101,6 @@ class TrainingResult:
     best_episode: int
 
 
-class _Replay:
-    def __init__(self, capacity: int) -> None:
-        self.capacity = capacity
-        self.state = np.zeros((capacity, STATE_SIZE), dtype=np.float32)
-        self.next_state = np.zeros((capacity, STATE_SIZE), dtype=np.float32)
-        self.action = np.zeros(capacity, dtype=np.int64)
-        self.reward = np.zeros(capacity, dtype=np.float32)
-        self.done = np.zeros(capacity, dtype=np.float32)
-        self.size = self._cursor = 0
-
-    def add(self, state: np.ndarray, action: int, reward: float, next_state: np.ndarray, done: bool) -> None:
-        i = self._cursor
-        self.state[i], self.action[i], self.reward[i], self.next_state[i], self.done[i] = (
-            state, action, reward, next_state, done)
-        self._cursor = (i + 1) % self.capacity
-        self.size = min(self.size + 1, self.capacity)
-
-    def sample(self, rng: np.random.Generator, n: int) -> tuple[torch.Tensor, ...]:
-        rows = rng.integers(self.size, size=n)
-        return tuple(torch.from_numpy(a[rows]) for a in (self.state, self.action, self.reward, self.next_state,
-                                                          self.done))
-
-
 def evaluate(network: CorrectorNet, episodes: Episodes, *, gamma: float = 0.99) -> dict[str, float]:
     """Run the greedy policy on every recorded movement at once.
 
@@ -165,10 +142,9 @@ def train(
     """
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    online = CorrectorNet()
-    target = copy.deepcopy(online)
-    optimiser = torch.optim.Adam(online.parameters(), lr=config.learning_rate)
-    replay = _Replay(config.buffer_size)
+    learner = DQNLearner(CorrectorNet(), learning_rate=config.learning_rate, max_grad_norm=config.max_grad_norm)
+    online = learner.online
+    replay = ReplayBuffer(config.buffer_size, STATE_SIZE)
     env = AmplificationEnv(episodes, gamma=config.gamma)
     bootstrap = config.gamma**env.interval
     epsilon = config.eps_start
@@ -185,12 +161,12 @@ def train(
                 action = int(online.act(state)[0])
             next_state, reward, ended = env.step(np.array([action]))
             done = bool(ended[0])
-            replay.add(state[0], action, config.reward_scale * float(reward[0]), next_state[0], done)
+            replay.add(state, np.array([action]), config.reward_scale * reward, next_state, ended)
             state = next_state
             if replay.size >= config.learning_starts:
                 for _ in range(config.updates_per_decision):
-                    _gradient_step(online, target, optimiser, replay, rng, config, bootstrap)
-        target.load_state_dict(online.state_dict())
+                    learner.update(replay.sample(rng, config.batch_size), bootstrap)
+        learner.update_target()
         epsilon = max(config.eps_min, epsilon * config.eps_decay)
         if episode % config.eval_every == 0 or episode == config.episodes:
             record = {"episode": episode, "epsilon": epsilon, **evaluate(online, episodes, gamma=config.gamma)}
@@ -204,26 +180,6 @@ def train(
     online.load_state_dict(best_state)
     online.eval()
     return TrainingResult(network=online, history=history, best_episode=best_episode)
-
-
-def _gradient_step(
-    online: CorrectorNet,
-    target: CorrectorNet,
-    optimiser: torch.optim.Optimizer,
-    replay: _Replay,
-    rng: np.random.Generator,
-    config: CorrectorConfig,
-    bootstrap: float,
-) -> None:
-    state, action, reward, next_state, done = replay.sample(rng, config.batch_size)
-    with torch.no_grad():
-        goal = reward + bootstrap * (1.0 - done) * target(next_state).max(dim=1).values
-    value = online(state).gather(1, action[:, None]).squeeze(1)
-    loss = nn.functional.smooth_l1_loss(value, goal)
-    optimiser.zero_grad()
-    loss.backward()
-    nn.utils.clip_grad_norm_(online.parameters(), config.max_grad_norm)
-    optimiser.step()
 
 
 def training_episodes(seed: int | None = None) -> Episodes:

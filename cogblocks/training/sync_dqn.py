@@ -39,13 +39,13 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torch import nn
 
 from cogblocks.data.groups import TABLE2, TABLE3_CHANGE_PCT, SyncGroup
+from cogblocks.training.dqn import DQNLearner, ReplayBuffer
 from cogblocks.training.l3_policies import ACTIONS, OBS_SIZE, DQNPolicy, L3QNetwork
 from cogblocks.training.sync_env import DT, SyncEnv, SyncModel, evaluate
 
-__all__ = ["DQNConfig", "ReplayBuffer", "TrainingResult", "main", "train"]
+__all__ = ["DQNConfig", "TrainingResult", "main", "train"]
 
 
 @dataclass(frozen=True)
@@ -111,32 +111,6 @@ class DQNConfig:
 QUICK_CONFIG = DQNConfig(episodes=2, copies=2, episode_seconds=20.0, learning_starts=1_000, buffer_size=50_000,
                          checks_per_episode=3)
 """Smoke-test settings of ``--quick``: a minute of training on 20 s episodes."""
-
-
-class ReplayBuffer:
-    """Circular buffer of transitions ``(obs, action, reward, next_obs)``, sampled uniformly."""
-
-    def __init__(self, capacity: int) -> None:
-        self.capacity = capacity
-        self.obs = np.zeros((capacity, OBS_SIZE), dtype=np.float32)
-        self.next_obs = np.zeros((capacity, OBS_SIZE), dtype=np.float32)
-        self.actions = np.zeros(capacity, dtype=np.int64)
-        self.rewards = np.zeros(capacity, dtype=np.float32)
-        self.size = 0
-        self._cursor = 0
-
-    def add(self, obs: np.ndarray, actions: np.ndarray, rewards: np.ndarray, next_obs: np.ndarray) -> None:
-        """Store a batch of transitions, overwriting the oldest when full."""
-        rows = (self._cursor + np.arange(len(actions))) % self.capacity
-        self.obs[rows], self.actions[rows], self.rewards[rows], self.next_obs[rows] = obs, actions, rewards, next_obs
-        self._cursor = int(rows[-1] + 1) % self.capacity
-        self.size = min(self.size + len(actions), self.capacity)
-
-    def sample(self, rng: np.random.Generator, batch_size: int) -> tuple[torch.Tensor, ...]:
-        """Uniform sample of transitions as tensors ``(obs, actions, rewards, next_obs)``."""
-        rows = rng.integers(self.size, size=batch_size)
-        return (torch.from_numpy(self.obs[rows]), torch.from_numpy(self.actions[rows]),
-                torch.from_numpy(self.rewards[rows]), torch.from_numpy(self.next_obs[rows]))
 
 
 @dataclass
@@ -240,10 +214,10 @@ def _train(config: DQNConfig, seed: int, groups: dict[int, SyncGroup], log: Call
            ) -> TrainingResult:
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    online = L3QNetwork()
-    target = copy.deepcopy(online)
-    optimiser = torch.optim.Adam(online.parameters(), lr=config.learning_rate)
-    buffer = ReplayBuffer(config.buffer_size)
+    learner = DQNLearner(L3QNetwork(), learning_rate=config.learning_rate, max_grad_norm=config.max_grad_norm,
+                         double_q=config.double_q)
+    online = learner.online
+    buffer = ReplayBuffer(config.buffer_size, OBS_SIZE)
     envs = _grouped_envs(list(groups.values()), config.copies, config.episode_seconds)
     ticks_per_round = max(env.n_steps for env in envs)
     total_ticks = config.episodes * ticks_per_round
@@ -273,15 +247,17 @@ def _train(config: DQNConfig, seed: int, groups: dict[int, SyncGroup], log: Call
             rewards.append(config.reward_scale * (r_next - r_now))
             if done:
                 env.reset()
-        buffer.add(obs, actions, np.concatenate(rewards), np.concatenate(next_obs))
+        # Time limits truncate, never terminate: every transition bootstraps.
+        buffer.add(obs, actions, np.concatenate(rewards), np.concatenate(next_obs),
+                   np.zeros(len(actions), dtype=bool))
         # After a reset the next decision starts from the fresh episode, not from next_obs.
         obs = np.concatenate([env.observation for env in envs])
 
         if buffer.size >= config.learning_starts and tick % config.train_every == 0:
-            losses.append(_gradient_step(online, target, optimiser, buffer, rng, config))
+            losses.append(learner.update(buffer.sample(rng, config.batch_size), config.gamma))
             gradient_steps += 1
             if gradient_steps % config.target_every == 0:
-                target.load_state_dict(online.state_dict())
+                learner.update_target()
 
         if (tick - 1) % ticks_per_round + 1 in check_ticks:
             change_pct = _evaluate_until_worse(DQNPolicy(copy.deepcopy(online)), groups, best_score,
@@ -302,25 +278,6 @@ def _train(config: DQNConfig, seed: int, groups: dict[int, SyncGroup], log: Call
 
     online.load_state_dict(best_state)
     return TrainingResult(network=online, history=history, best=best_check)
-
-
-def _gradient_step(online: L3QNetwork, target: L3QNetwork, optimiser: torch.optim.Optimizer,
-                   buffer: ReplayBuffer, rng: np.random.Generator, config: DQNConfig) -> float:
-    obs, actions, rewards, next_obs = buffer.sample(rng, config.batch_size)
-    with torch.no_grad():
-        if config.double_q:
-            next_actions = online(next_obs).argmax(dim=1, keepdim=True)
-            next_values = target(next_obs).gather(1, next_actions).squeeze(1)
-        else:
-            next_values = target(next_obs).max(dim=1).values
-        targets = rewards + config.gamma * next_values
-    values = online(obs).gather(1, actions[:, None]).squeeze(1)
-    loss = nn.functional.smooth_l1_loss(values, targets)
-    optimiser.zero_grad()
-    loss.backward()
-    nn.utils.clip_grad_norm_(online.parameters(), config.max_grad_norm)
-    optimiser.step()
-    return loss.item()
 
 
 def main(argv: Sequence[str] | None = None) -> None:
