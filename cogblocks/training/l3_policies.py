@@ -10,12 +10,12 @@ from __future__ import annotations
 
 from importlib import resources
 from os import PathLike
-from typing import Protocol
 
 import numpy as np
 import torch
 from torch import nn
 
+from cogblocks.blocks.motion import L3Policy
 from cogblocks.data.groups import SyncGroup
 from cogblocks.training.sync_env import (
     ACTIONS,
@@ -39,16 +39,6 @@ __all__ = [
 ]
 
 OBS_SIZE = 3
-
-
-class L3Policy(Protocol):
-    """Interface shared by every L3 motion computer."""
-
-    def reset(self, omega_init: float) -> None:
-        """Start an episode whose virtual oscillator begins at frequency ``omega_init`` (rad/s)."""
-
-    def act(self, context: L3Context) -> int:
-        """Index into :data:`ACTIONS` of the frequency increment to apply at tick ``context.k``."""
 
 
 class L3QNetwork(nn.Module):

@@ -25,17 +25,13 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cogblocks.blocks.angles import wrap_pi
 from cogblocks.blocks.group import ring_adjacency
-from cogblocks.blocks.motion import ACTIONS, HOLD_ACTION, OMEGA_L3_LIMIT, L3Context, l3_observation
+from cogblocks.blocks.motion import ACTIONS, HOLD_ACTION, OMEGA_L3_LIMIT, L3Context, L3Policy, l3_observation
 from cogblocks.data.groups import SyncGroup
-
-if TYPE_CHECKING:
-    from cogblocks.training.l3_policies import L3Policy
 
 __all__ = [
     "ACTIONS",
