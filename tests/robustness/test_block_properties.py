@@ -38,7 +38,7 @@ import pytest
 from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
-import cogblocks.blocks as blocks_pkg
+import cogblocks.blocks.catalogue as catalogue
 from cogblocks.blocks import (
     L1,
     Algorithm1Phase,
@@ -74,7 +74,7 @@ from cogblocks.blocks import (
     UnitDelay,
 )
 from cogblocks.blocks import PositionComputer as PhasePositionComputer
-from cogblocks.sim import Block, Diagram, Signal, SimulationError
+from cogblocks.sim import Diagram, Signal, SimulationError
 
 TWO_PI = 2.0 * math.pi
 TICKS = st.integers(20, 40)  # a few dozen ticks: filters start, frozen runs get confirmed
@@ -1147,28 +1147,8 @@ VIOLATIONS: dict[tuple[type | None, str], str] = {}
 # -- the tests ----------------------------------------------------------------------------------------------
 
 
-# public blocks outside cogblocks.blocks.__all__: the torch-backed blocks, the L2 architectures as blocks
-# and the optimisation-based blender
-PUBLIC_MODULES = (
-    "cogblocks.blocks.encoding",
-    "cogblocks.blocks.buffer",
-    "cogblocks.blocks.rl",
-    "cogblocks.diagrams.sync",
-    "cogblocks.diagrams.amplification",
-    "cogblocks.analysis.optimal_blending",
-)
-
-
 def public_blocks() -> set[type]:
-    """Block classes of ``cogblocks.blocks.__all__`` and of the public modules not re-exported there."""
-    exported = [getattr(blocks_pkg, name) for name in blocks_pkg.__all__]
-    for module in PUBLIC_MODULES:
-        try:
-            mod = importlib.import_module(module)
-        except ImportError:  # pragma: no cover - not written yet
-            continue
-        exported += [getattr(mod, name) for name in getattr(mod, "__all__", ())]
-    return {obj for obj in exported if inspect.isclass(obj) and issubclass(obj, Block)}
+    return set(catalogue.public_blocks().values())
 
 
 def test_every_public_block_has_a_factory():

@@ -13,7 +13,6 @@ is wrong), so that fixing the block flags the entry for removal.
 
 from __future__ import annotations
 
-import importlib
 import inspect
 import math
 import re
@@ -24,38 +23,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-import cogblocks.blocks as blocks_pkg
-from cogblocks.sim import Block, Signal
-
-# public blocks outside cogblocks.blocks.__all__: the torch-backed blocks, the L2 architectures as blocks
-# and the optimisation-based blender
-OPTIONAL_MODULES = (
-    "cogblocks.blocks.encoding",
-    "cogblocks.blocks.buffer",
-    "cogblocks.blocks.rl",
-    "cogblocks.diagrams.sync",
-    "cogblocks.diagrams.amplification",
-    "cogblocks.analysis.optimal_blending",
-)
-
-
-def public_blocks() -> dict[str, type]:
-    """Public block classes by qualified name ("encoding.PositionComputer" for the one not re-exported)."""
-    found: dict[str, type] = {}
-    for name in blocks_pkg.__all__:
-        obj = getattr(blocks_pkg, name)
-        if inspect.isclass(obj) and issubclass(obj, Block):
-            found[name] = obj
-    for module in OPTIONAL_MODULES:
-        try:
-            mod = importlib.import_module(module)
-        except ImportError:  # pragma: no cover - being written
-            continue
-        for name in getattr(mod, "__all__", ()):
-            obj = getattr(mod, name)
-            if inspect.isclass(obj) and issubclass(obj, Block) and obj not in found.values():
-                found[f"{module.rsplit('.', 1)[-1]}.{name}"] = obj
-    return found
+from cogblocks.blocks.catalogue import public_blocks
+from cogblocks.sim import Signal
 
 
 def block(name: str) -> type:
