@@ -37,18 +37,18 @@ import numpy as np
 
 from cogblocks.blocks.encoding import (
     CLIP_HIGH,
-    COUNT,
     N_POINTS,
     REST_SPEED,
-    VELOCITY,
     EncoderNet,
     SolutionTable,
+    add_blending_ports,
+    blend,
     movement_length,
     resampling_matrix,
 )
 from cogblocks.blocks.samples import plausible
 from cogblocks.data.reach import ReachLibrary
-from cogblocks.sim import Block, Signal
+from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
 __all__ = ["OptimalBlender", "PlanResult", "encoder_to_casadi", "input_map"]
@@ -426,14 +426,7 @@ class OptimalBlender(Block):
         self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)
         self._pending: dict[str, Any] | None = None
         n = library.max_len
-        self.add_input("v_h", VELOCITY)
-        self.add_input("v_r", VELOCITY)
-        self.add_input("v_u", VELOCITY, default=np.zeros(3))
-        self.add_input("nearest", COUNT)
-        self.add_input("reference", COUNT)
-        self.add_input("decisions", COUNT)
-        self.add_output("v_a", VELOCITY)
-        self.add_output("c", Signal(unit="1"), initial=1.0)
+        add_blending_ports(self)
         self.add_state("human", np.zeros((n, 3)))  # v_h received, by tick
         self.add_state("altered", np.zeros((n, 3)))  # v_a emitted, by tick
         self.add_state("plan", np.zeros((n, 3)))  # the correction u in force, by tick
@@ -473,11 +466,8 @@ class OptimalBlender(Block):
             v_a[...] = v_h + state["plan"][t] if t < state["end"] else 0.0
             self.c.value[...] = _equivalent_c(v_a, v_h, v_r)
         elif math.isfinite(state["table_c"]):
-            c = state["table_c"]
-            self.c.value[...] = c
-            np.multiply(c, v_h, out=v_a)
-            if c != 1.0:  # as in VelocityBlender: no weight, no say (0 * NaN is NaN)
-                v_a += (1.0 - c) * v_r
+            self.c.value[...] = state["table_c"]
+            blend(state["table_c"], v_h, v_r, v_a)
         else:
             self.c.value[...] = 1.0
             v_a[...] = v_h

@@ -42,6 +42,8 @@ from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
 __all__ = [
+    "BLENDING_INPUTS",
+    "BLENDING_OUTPUTS",
     "CLIP_HIGH",
     "CLIP_LOW",
     "REST_SPEED",
@@ -55,6 +57,8 @@ __all__ = [
     "PrefixProjection",
     "SolutionTable",
     "VelocityBlender",
+    "add_blending_ports",
+    "blend",
     "clip_decision",
     "default_cache_dir",
     "library_fingerprint",
@@ -673,6 +677,38 @@ class LibraryProjector(Block):
         self.n_decisions = count // self.interval
 
 
+_BLENDING_INPUT_SPECS = {
+    "v_h": VELOCITY,
+    "v_r": VELOCITY,
+    "v_u": VELOCITY,
+    "nearest": COUNT,
+    "reference": COUNT,
+    "decisions": COUNT,
+}
+#: The ports every blending rule has (:func:`add_blending_ports`).
+BLENDING_INPUTS = tuple(_BLENDING_INPUT_SPECS)
+BLENDING_OUTPUTS = ("v_a", "c")
+
+
+def add_blending_ports(block: Block) -> None:
+    """Declare the ports every blending rule shares, so that rules swap in the architecture.
+
+    Inputs ``v_h``, ``v_r``, ``v_u`` (zero if unconnected), shape (3,), mm/s, and the projector's
+    decision ``nearest``, ``reference``, ``decisions`` (int64); outputs ``v_a`` (mm/s) and ``c``.
+    """
+    for name, spec in _BLENDING_INPUT_SPECS.items():
+        block.add_input(name, spec, default=np.zeros(3) if name == "v_u" else None)
+    block.add_output("v_a", VELOCITY)
+    block.add_output("c", Signal(unit="1"), initial=1.0)
+
+
+def blend(c: float, v_h: np.ndarray, v_r: np.ndarray, out: np.ndarray) -> None:
+    """``out = c·v_h + (1 − c)·v_r``, in place; ``v_r`` is not read when ``c = 1`` (0·NaN is NaN)."""
+    np.multiply(c, v_h, out=out)
+    if c != 1.0:
+        out += (1.0 - c) * v_r
+
+
 class VelocityBlender(Block):
     """``v_a = c·v_h + (1 − c)·v_r + v_u`` with ``c = w̃(η_i, v_r)`` from a :class:`SolutionTable`.
 
@@ -711,14 +747,7 @@ class VelocityBlender(Block):
         if not isinstance(table, SolutionTable):
             raise ValueError(f"VelocityBlender: table must be a SolutionTable, got {type(table).__name__}")
         self.table = table
-        self.add_input("v_h", VELOCITY)
-        self.add_input("v_r", VELOCITY)
-        self.add_input("v_u", VELOCITY, default=np.zeros(3))
-        self.add_input("nearest", COUNT)
-        self.add_input("reference", COUNT)
-        self.add_input("decisions", COUNT)
-        self.add_output("v_a", VELOCITY)
-        self.add_output("c", Signal(unit="1"), initial=1.0)
+        add_blending_ports(self)
 
     def output(self, k: int) -> None:
         if int(self.decisions.value) > 0:
@@ -726,11 +755,8 @@ class VelocityBlender(Block):
         else:
             c = 1.0
         self.c.value[...] = c
-        v_a = self.v_a.value
-        np.multiply(c, self.v_h.value, out=v_a)
-        if c != 1.0:  # (1 - c) * NaN would be NaN even where the reference has no weight
-            v_a += (1.0 - c) * self.v_r.value
-        v_a += self.v_u.value
+        blend(c, self.v_h.value, self.v_r.value, self.v_a.value)
+        self.v_a.value += self.v_u.value
 
 
 class PositionComputer(Block):

@@ -20,6 +20,8 @@ import numpy as np
 from cogblocks.blocks.buffer import Buffer
 from cogblocks.blocks.core import Playback, Probe
 from cogblocks.blocks.encoding import (
+    BLENDING_INPUTS,
+    BLENDING_OUTPUTS,
     EncoderClassifier,
     EncoderNet,
     LibraryProjector,
@@ -136,8 +138,8 @@ class L2Amplification(Diagram):
                 self,
                 "blending",
                 blending,
-                inputs=("v_h", "v_r", "v_u", "nearest", "reference", "decisions"),
-                outputs=("v_a", "c"),
+                inputs=BLENDING_INPUTS,
+                outputs=BLENDING_OUTPUTS,
             )
         if corrector is not None:
             block_with_ports(
