@@ -1045,17 +1045,21 @@ def register_amplification() -> None:
         return dict(streams, nearest=rng.choice(table.rows, n), reference=rng.choice(table.cols, n))
 
     zeros = ints(lambda n: st.just(np.zeros(n, np.int64)))
-    register(
-        encoding.VelocityBlender,
-        st.builds(encoding.VelocityBlender, st.just(table)),
-        lambda b: {
+
+    def blending_feeds(block):  # the ports every blending rule shares
+        return {
             "v_h": floats((3,), "mm/s", scale=500.0),
             "v_r": floats((3,), "mm/s", scale=500.0),
             "v_u": floats((3,), "mm/s", scale=50.0),
             "nearest": zeros,
             "reference": zeros,
             "decisions": ints(counter),
-        },
+        }
+
+    register(
+        encoding.VelocityBlender,
+        st.builds(encoding.VelocityBlender, st.just(table)),
+        blending_feeds,
         ["v_h", "v_r", "v_u"],
         # "a non-finite v_h or v_u, or a non-finite v_r while it is weighted (c < 1), gives a non-finite v_a"
         Policy(nonfinite={"v_a": when_bad("v_h", "v_r", "v_u")}, check=check_velocity_blender),
@@ -1118,14 +1122,7 @@ def register_amplification() -> None:
     register(
         OptimalBlender,
         st.builds(OptimalBlender, st.just(library), st.just(network), st.just(table), time_limit_ms=st.just(50.0)),
-        lambda b: {
-            "v_h": floats((3,), "mm/s", scale=500.0),
-            "v_r": floats((3,), "mm/s", scale=500.0),
-            "v_u": floats((3,), "mm/s", scale=50.0),
-            "nearest": zeros,
-            "reference": zeros,
-            "decisions": ints(counter),
-        },
+        blending_feeds,
         ["v_h", "v_r", "v_u"],
         # "a non-finite v_h or v_u gives a non-finite v_a on that tick (v_r only counts while the table's c < 1 is in
         # force); a non-finite or implausible sample is recorded as zero for later plans"
