@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import inspect
 from collections.abc import Iterator, Mapping
 from typing import Any
 
@@ -272,6 +273,40 @@ class Block:
     # -- helpers for subclasses ----------------------------------------------
     def _fail(self, message: str) -> DiagramError:
         return DiagramError(f"{self.name or type(self).__name__}: {message}")
+
+    # -- the constructor call, for files -------------------------------------
+    def __new__(cls, *args: Any, **kwargs: Any) -> Block:
+        # Remember how the block was built so a diagram can be written as plain data
+        # (cogblocks.experiments.files). Unpickling and deepcopy call __new__ without arguments
+        # and then restore __dict__, which brings the original call back.
+        self = super().__new__(cls)
+        object.__setattr__(self, "_init_call", (args, kwargs))
+        return self
+
+    @property
+    def init_arguments(self) -> dict[str, Any]:
+        """The arguments the block was constructed with, by parameter name (defaults left out).
+
+        Extra keywords taken by a ``**kwargs`` parameter appear under their own names.
+
+        Raises
+        ------
+        TypeError
+            If the constructor takes ``*args``: such a call has no names to store.
+        """
+        args, kwargs = self.__dict__.get("_init_call", ((), {}))
+        signature = inspect.signature(type(self).__init__)
+        bound = signature.bind(self, *args, **kwargs)
+        found: dict[str, Any] = {}
+        for name, value in list(bound.arguments.items())[1:]:
+            kind = signature.parameters[name].kind
+            if kind is inspect.Parameter.VAR_POSITIONAL:
+                raise TypeError(f"{type(self).__name__}: a constructor with *{name} cannot be described by names")
+            if kind is inspect.Parameter.VAR_KEYWORD:
+                found.update(value)
+            else:
+                found[name] = value
+        return found
 
 
 def _snapshot(value: Any) -> Any:

@@ -1,0 +1,1 @@
+"""Experiments at scale: parameter sweeps on joblib or Dask, diagrams and traces as files."""

@@ -1,0 +1,371 @@
+"""Diagrams as files: plain data (JSON, or YAML with PyYAML) naming catalogue blocks, their parameters and wires.
+
+A block is stored by its catalogue name (:func:`cogblocks.blocks.catalogue.public_blocks`) and the
+arguments it was constructed with (:attr:`cogblocks.sim.Block.init_arguments`), as plain data:
+arrays as nested lists with their dtype, signal specs as their fields, blocks given to a block
+(``L2Sync(motion=...)``, ``L1(estimator=...)``) as nested block entries. Libraries, w̃ tables and
+networks go to files beside the diagram (``<name>.data/``: ``.npz`` without pickles, ``.pt`` state
+dicts loaded with ``weights_only=True``). No code is stored and nothing is evaluated when loading.
+
+What cannot be saved, with a ``TypeError`` naming the block and the parameter: callables
+(:class:`~cogblocks.blocks.Function`), ``numpy.random.Generator`` seeds (give an int seed),
+python-control systems (:class:`~cogblocks.blocks.DiscreteLTI`), L3 policies
+(:class:`~cogblocks.blocks.motion.MotionComputer`; ``MeanPhaseMotion`` is fine) and any block or
+diagram subclass outside the catalogue (pass ``blocks={"Name": cls}`` to allow your own).
+
+A file holds a diagram's configuration, not its run state: a loaded diagram starts from tick 0.
+The architecture blocks (``L2Sync``, ``L2Amplification``) are stored by their constructor
+arguments, so changes made inside them after construction (``replace``) are refused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cogblocks.sim import Block, Diagram, DiagramError, Signal
+
+__all__ = ["FORMAT", "diagram_from_dict", "diagram_to_dict", "load_diagram", "save_diagram"]
+
+FORMAT = "cogblocks.diagram/1"
+
+
+def _catalogue(extra: Mapping[str, type] | None) -> dict[str, type]:
+    from cogblocks.blocks.catalogue import public_blocks
+
+    found: dict[str, type] = dict(public_blocks())
+    found.update(extra or {})
+    return found
+
+
+def _data_types() -> dict[str, type]:
+    """Data classes stored as ``.npz`` files of their fields."""
+    from cogblocks.blocks.encoding import SolutionTable
+    from cogblocks.data.reach import ReachLibrary
+
+    return {"ReachLibrary": ReachLibrary, "SolutionTable": SolutionTable}
+
+
+def _networks() -> dict[str, tuple[type, Callable[[Any], dict[str, Any]], Callable[[Path], Any]]]:
+    """Networks stored as torch checkpoints: class, what to save, how to load."""
+    from cogblocks.blocks.encoding import EncoderNet, load_encoder
+    from cogblocks.blocks.rl import CorrectorNet, load_corrector
+
+    def encoder_checkpoint(net: EncoderNet) -> dict[str, Any]:
+        return {"hidden": net.hidden.out_features, "dropout": net.dropout.p}
+
+    return {
+        "EncoderNet": (EncoderNet, encoder_checkpoint, load_encoder),
+        "CorrectorNet": (CorrectorNet, lambda net: {}, load_corrector),
+    }
+
+
+class _Writer:
+    """Turns values into plain data; writes data objects and networks to ``folder`` once each."""
+
+    def __init__(self, catalogue: dict[str, type], folder: Path | None) -> None:
+        self.names = {cls: name for name, cls in catalogue.items()}
+        self.folder = folder
+        self.written: dict[int, dict[str, str]] = {}
+
+    def block(self, block: Block, where: str) -> dict[str, Any]:
+        if type(block) is Diagram:
+            entry: dict[str, Any] = {"diagram": self.diagram(block, where)}
+        else:
+            name = self.names.get(type(block))
+            if name is None:
+                raise TypeError(
+                    f"{where}: {type(block).__name__} is not in the block catalogue "
+                    "(cogblocks.blocks.catalogue.public_blocks()); pass blocks={name: class} to save it"
+                )
+            params = block.init_arguments
+            if isinstance(block, Diagram):
+                _check_unchanged(block, params, where)
+            entry = {"type": name, "params": {k: self.value(v, f"{where}: parameter {k!r}") for k, v in params.items()}}
+        if block.period is not None:
+            entry["period"] = block.period
+        return entry
+
+    def diagram(self, diagram: Diagram, where: str) -> dict[str, Any]:
+        prefix = f"{where}." if where else ""
+        blocks = {name: self.block(child, f"{prefix}{name}") for name, child in diagram._children.items()}
+        return {
+            "blocks": blocks,
+            "wires": [[f"{s}.{sp}", f"{d}.{dp}"] for s, sp, d, dp in diagram._wires],
+            "inputs": {
+                name: {"targets": [f"{c}.{p}" for c, p in targets], "spec": _spec(diagram._inputs[name].spec)}
+                for name, targets in diagram._exposed_in.items()
+            },
+            "outputs": {name: f"{c}.{p}" for name, (c, p) in diagram._exposed_out.items()},
+        }
+
+    def value(self, value: Any, where: str) -> Any:
+        if value is None or isinstance(value, (bool, int, float, str)):
+            return value
+        if isinstance(value, np.generic) and not isinstance(value, np.object_):
+            return value.item()
+        if isinstance(value, np.ndarray) and value.dtype.kind in "biuf":
+            return {"array": value.tolist(), "dtype": value.dtype.str}
+        if isinstance(value, tuple):
+            return {"tuple": [self.value(v, where) for v in value]}
+        if isinstance(value, list):
+            return [self.value(v, where) for v in value]
+        if isinstance(value, dict) and all(isinstance(k, str) for k in value):
+            return {"dict": {k: self.value(v, f"{where}[{k!r}]") for k, v in value.items()}}
+        if isinstance(value, Signal):
+            return {"signal": _spec(value)}
+        if isinstance(value, Block):
+            return {"block": self.block(value, where)}
+        for name, cls in _data_types().items():
+            if type(value) is cls:
+                return self.file(value, name, "data", where, self._write_data)
+        for name, (cls, _, _) in _networks().items():
+            if type(value) is cls:
+                return self.file(value, name, "network", where, self._write_network)
+        raise TypeError(f"{where}: a {type(value).__name__} cannot be stored in a diagram file (no code is stored)")
+
+    def file(self, value: Any, name: str, kind: str, where: str, write: Callable[[Any, Path], None]) -> dict[str, str]:
+        if id(value) not in self.written:
+            if self.folder is None:
+                raise TypeError(f"{where}: a {name} is stored in a file beside the diagram; use save_diagram")
+            suffix = ".npz" if kind == "data" else ".pt"
+            relative = f"{self.folder.name}/{name.lower()}{len(self.written)}{suffix}"
+            self.folder.mkdir(parents=True, exist_ok=True)
+            write(value, self.folder.parent / relative)
+            self.written[id(value)] = {kind: name, "file": relative}
+        return self.written[id(value)]
+
+    @staticmethod
+    def _write_data(value: Any, path: Path) -> None:
+        fields = {f.name: np.asarray(getattr(value, f.name)) for f in dataclasses.fields(value) if f.init}
+        np.savez(path, **fields)
+
+    @staticmethod
+    def _write_network(value: Any, path: Path) -> None:
+        import torch
+
+        _, extra, _ = _networks()[type(value).__name__]
+        meta = dict(getattr(value, "checkpoint", {}) or {})
+        torch.save({**meta, **extra(value), "state_dict": value.state_dict()}, path)
+
+
+def _check_unchanged(diagram: Diagram, params: dict[str, Any], where: str) -> None:
+    """An architecture block is rebuilt from its arguments: refuse one whose insides were swapped since."""
+    children = {id(c) for c in diagram._children.values()}
+    swapped = [k for k, v in params.items() if isinstance(v, Block) and id(v) not in children]
+    if swapped:
+        raise TypeError(
+            f"{where}: {type(diagram).__name__} was changed after construction (its {swapped} is no longer inside); "
+            "build it again with the new block instead of replace() to save it"
+        )
+
+
+def _spec(spec: Signal) -> dict[str, Any]:
+    return {
+        "shape": None if spec.shape is None else list(spec.shape),
+        "dtype": None if spec.dtype is None else spec.dtype.str,
+        "unit": spec.unit,
+        "wrapped": spec.wrapped,
+    }
+
+
+def diagram_to_dict(diagram: Diagram, *, blocks: Mapping[str, type] | None = None) -> dict[str, Any]:
+    """A diagram as plain data (no libraries, tables or networks: those need :func:`save_diagram`).
+
+    Parameters
+    ----------
+    diagram : Diagram
+    blocks : mapping of str to type, optional
+        Block classes outside the catalogue that may be stored, by the name to store them under.
+
+    Raises
+    ------
+    TypeError
+        If a block or a parameter cannot be stored; the message names the block and the parameter.
+    """
+    return _to_dict(diagram, blocks, None)
+
+
+def _to_dict(diagram: Diagram, blocks: Mapping[str, type] | None, folder: Path | None) -> dict[str, Any]:
+    if not isinstance(diagram, Diagram):
+        raise TypeError(f"expected a Diagram, got {type(diagram).__name__}")
+    writer = _Writer(_catalogue(blocks), folder)
+    return {"format": FORMAT, "root": writer.block(diagram, "")}
+
+
+class _Reader:
+    """Builds blocks from plain data; every error names the file and the block."""
+
+    def __init__(self, catalogue: dict[str, type], base: Path | None, source: str) -> None:
+        self.catalogue = catalogue
+        self.base = base
+        self.source = source
+        self.loaded: dict[str, Any] = {}
+
+    def fail(self, where: str, exc: Exception) -> Exception:
+        place = f" block {where!r}" if where else ""
+        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        error = type(exc)(f"{self.source}:{place}: {message}")
+        error.__cause__ = exc
+        return error
+
+    def block(self, entry: Any, where: str) -> Block:
+        if not isinstance(entry, dict) or ("diagram" in entry) == ("type" in entry):
+            raise self.fail(where, ValueError("a block entry needs either 'type' and 'params' or 'diagram'"))
+        if "diagram" in entry:
+            block: Block = self.diagram(entry["diagram"], where, entry.get("period"))
+            return block
+        name = entry["type"]
+        cls = self.catalogue.get(name)
+        if cls is None:
+            raise self.fail(where, ValueError(f"unknown block type {name!r}; known: {sorted(self.catalogue)}"))
+        raw = entry.get("params", {})
+        if not isinstance(raw, dict):
+            raise self.fail(where, ValueError(f"params must be a mapping, got {type(raw).__name__}"))
+        params = {k: self.value(v, where) for k, v in raw.items()}
+        try:
+            block = cls(**params)
+            if entry.get("period") is not None:
+                block.period = entry["period"]
+        except (ValueError, TypeError, DiagramError) as exc:
+            raise self.fail(where, exc) from exc
+        return block
+
+    def diagram(self, data: Any, where: str, period: float | None) -> Diagram:
+        if not isinstance(data, dict):
+            raise self.fail(where, ValueError("a diagram entry must be a mapping"))
+        unknown = set(data) - {"blocks", "wires", "inputs", "outputs"}
+        if unknown:
+            raise self.fail(where, ValueError(f"unknown diagram field(s) {sorted(unknown)}"))
+        prefix = f"{where}." if where else ""
+        d = Diagram(period=period)
+        children = {name: self.block(entry, f"{prefix}{name}") for name, entry in data.get("blocks", {}).items()}
+        try:
+            for name, child in children.items():
+                d.add(name, child)
+            for source, target in data.get("wires", []):
+                d.connect(source, target)
+            for name, exposed in data.get("inputs", {}).items():
+                d.expose_input(name, *exposed["targets"], spec=_signal(exposed["spec"]))
+            for name, source in data.get("outputs", {}).items():
+                d.expose_output(name, source)
+        except (ValueError, TypeError, DiagramError, KeyError) as exc:
+            raise self.fail(where, exc) from exc
+        return d
+
+    def value(self, value: Any, where: str) -> Any:
+        if isinstance(value, list):
+            return [self.value(v, where) for v in value]
+        if not isinstance(value, dict):
+            return value
+        if "array" in value:
+            return np.array(value["array"], dtype=np.dtype(value["dtype"]))
+        if "tuple" in value:
+            return tuple(self.value(v, where) for v in value["tuple"])
+        if "dict" in value:
+            return {k: self.value(v, where) for k, v in value["dict"].items()}
+        if "signal" in value:
+            return _signal(value["signal"])
+        if "block" in value:
+            return self.block(value["block"], where)
+        if "data" in value or "network" in value:
+            return self.file(value, where)
+        raise self.fail(where, ValueError(f"unknown parameter encoding with keys {sorted(value)}"))
+
+    def file(self, value: dict[str, str], where: str) -> Any:
+        relative = value["file"]
+        if relative not in self.loaded:
+            if self.base is None:
+                raise self.fail(where, ValueError(f"{relative} is a file beside the diagram; use load_diagram"))
+            path = self.base / relative
+            if "data" in value:
+                cls = _data_types().get(value["data"])
+                if cls is None:
+                    raise self.fail(where, ValueError(f"unknown data type {value['data']!r}"))
+                with np.load(path, allow_pickle=False) as stored:
+                    fields = {k: stored[k].item() if stored[k].ndim == 0 else stored[k] for k in stored.files}
+                self.loaded[relative] = cls(**fields)
+            else:
+                known = _networks()
+                if value["network"] not in known:
+                    raise self.fail(where, ValueError(f"unknown network type {value['network']!r}"))
+                self.loaded[relative] = known[value["network"]][2](path)
+        return self.loaded[relative]
+
+
+def _signal(fields: dict[str, Any]) -> Signal:
+    shape = fields["shape"]
+    return Signal(
+        shape=None if shape is None else tuple(shape),
+        dtype=fields["dtype"],
+        unit=fields["unit"],
+        wrapped=fields["wrapped"],
+    )
+
+
+def diagram_from_dict(
+    data: Mapping[str, Any], *, blocks: Mapping[str, type] | None = None, source: str = "<dict>"
+) -> Diagram:
+    """Build the diagram that :func:`diagram_to_dict` described.
+
+    Raises
+    ------
+    ValueError, TypeError, DiagramError
+        What building the same diagram in Python raises, with ``source`` and the block's path
+        in front of the message.
+    """
+    return _from_dict(data, blocks, None, source)
+
+
+def _from_dict(data: Mapping[str, Any], blocks: Mapping[str, type] | None, base: Path | None, source: str) -> Diagram:
+    if not isinstance(data, Mapping) or data.get("format") != FORMAT:
+        found = data.get("format") if isinstance(data, Mapping) else type(data).__name__
+        raise ValueError(f"{source}: not a cogblocks diagram (format {found!r}, expected {FORMAT!r})")
+    root = _Reader(_catalogue(blocks), base, source).block(data["root"], "")
+    if not isinstance(root, Diagram):
+        raise ValueError(f"{source}: the root entry is a {type(root).__name__}, not a diagram")
+    return root
+
+
+def _is_yaml(path: Path) -> bool:
+    return path.suffix.lower() in (".yaml", ".yml")
+
+
+def save_diagram(diagram: Diagram, path: str | Path, *, blocks: Mapping[str, type] | None = None) -> Path:
+    """Write ``diagram`` to ``path`` (``.json``, or ``.yaml``/``.yml`` with PyYAML).
+
+    Libraries, tables and networks go to ``<path stem>.data/`` beside it. Returns the path.
+    """
+    path = Path(path)
+    data = _to_dict(diagram, blocks, path.parent / f"{path.stem}.data")
+    if _is_yaml(path):
+        import yaml
+
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+    else:
+        path.write_text(json.dumps(data, indent=1))
+    return path
+
+
+def load_diagram(path: str | Path, *, blocks: Mapping[str, type] | None = None) -> Diagram:
+    """Read a diagram written by :func:`save_diagram`; errors name the file and the block."""
+    path = Path(path)
+    text = path.read_text()
+    if _is_yaml(path):
+        import yaml
+
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            raise ValueError(f"{path}: not readable as YAML: {exc}") from exc
+    else:
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}: not readable as JSON: {exc}") from exc
+    return _from_dict(data, blocks, path.parent, str(path))
