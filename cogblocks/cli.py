@@ -21,7 +21,7 @@ def _print_result(result: dict[str, Any], as_json: bool, render: Callable[[dict[
 def _run_demo(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.demo import kuramoto_demo
 
-    result = kuramoto_demo(duration=args.duration, plot=args.plot)
+    result = kuramoto_demo(duration=args.duration, plot=args.plot, save_trace=args.save_trace)
     _print_result(
         result,
         args.json,
@@ -35,9 +35,14 @@ def _run_demo(args: argparse.Namespace) -> int:
 
 def _run_sync(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.sync import MOTIONS, plot_sync, run_sync
+    from cogblocks.experiments.sync import save_sync_trace
 
     motions = list(MOTIONS) if args.policy is None else args.policy
+    if args.save_trace and len(motions) != 1:
+        raise ValueError("--save-trace writes one run's trace: give exactly one --policy")
     result = run_sync(args.group, motions, domain=args.domain)
+    if args.save_trace:
+        save_sync_trace(args.group, motions[0], args.domain, args.save_trace)
     if args.plot:
         plot_sync(args.group, motions[0], args.plot)
 
@@ -134,7 +139,7 @@ def _build_parser() -> argparse.ArgumentParser:
         default="phase",
         help="'position': the L2 works on phases estimated from simulated arm positions (default 'phase')",
     )
-    _common(sync)
+    _common(sync, trace=True)
     sync.set_defaults(handler=_run_sync)
 
     phase3d = targets.add_parser("phase3d", help="3D phase estimation accuracy and the 3D phase chain")
@@ -157,14 +162,16 @@ def _build_parser() -> argparse.ArgumentParser:
 
     demo = targets.add_parser("demo", help="a Kuramoto group (Table 2, group 3) without L2")
     demo.add_argument("--duration", type=float, default=300.0, help="simulated seconds (default 300)")
-    _common(demo)
+    _common(demo, trace=True)
     demo.set_defaults(handler=_run_demo)
     return parser
 
 
-def _common(p: argparse.ArgumentParser) -> None:
+def _common(p: argparse.ArgumentParser, trace: bool = False) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.add_argument("--plot", metavar="FILE", help="save a figure to FILE (png, pdf, svg)")
+    if trace:
+        p.add_argument("--save-trace", metavar="FILE", help="save the run's trace to FILE (.npz or .parquet)")
 
 
 def _version() -> str:

@@ -29,11 +29,16 @@ def kuramoto_diagram(omega: Any = _OMEGA, gain: float = _GAIN) -> Diagram:
     return d
 
 
-def kuramoto_demo(duration: float = 300.0, plot: str | None = None) -> dict[str, Any]:
-    """Run :func:`kuramoto_diagram` for ``duration`` seconds (samples t = 0 … duration inclusive)."""
+def kuramoto_demo(duration: float = 300.0, plot: str | None = None, save_trace: str | None = None) -> dict[str, Any]:
+    """Run :func:`kuramoto_diagram` for ``duration`` seconds (samples t = 0 … duration inclusive).
+
+    ``save_trace``: a ``.npz`` or ``.parquet`` file to write the trace to (see :meth:`Trace.save`).
+    """
     d = kuramoto_diagram()
     sim = Simulator(d)
     trace = sim.run(n_steps=sim.steps(duration) + 1)  # t = 0 … duration inclusive
+    if save_trace:
+        trace.save(save_trace)
     if plot:
         import matplotlib
 

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
+import os
 from collections.abc import Iterator, Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -79,3 +82,80 @@ class Trace(Mapping[str, np.ndarray]):
                     j = int(np.ravel_multi_index(idx, arr.shape[1:]))
                     columns[f"{name}[{','.join(map(str, idx))}]"] = flat[:, j]
         return pd.DataFrame(columns, index=pd.Index(self.t, name="t"))
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the trace to ``path``: ``.npz`` (NumPy, no pickles) or ``.parquet`` (pyarrow).
+
+        Both keep the time axis, every signal's shape and dtype, and the units; a vector signal
+        becomes columns ``name[i]`` in Parquet. Returns the path.
+        """
+        path = Path(path)
+        names = list(self._signals)
+        meta = {
+            "format": _TRACE_FORMAT,
+            "signals": names,
+            "units": self.units,
+            "shapes": {name: list(self._signals[name].shape[1:]) for name in names},
+        }
+        kind = _trace_kind(path)
+        if kind == "npz":
+            arrays = {f"signal{i}": np.asarray(self._signals[name]) for i, name in enumerate(names)}
+            np.savez(path, t=self.t, meta=np.array(json.dumps(meta)), **arrays)
+            return path
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        columns: dict[str, np.ndarray] = {"t": self.t}
+        for name in names:
+            arr = np.asarray(self._signals[name])
+            flat = arr.reshape(len(arr), -1)
+            if arr.ndim == 1:
+                columns[name] = arr
+            else:
+                for j, idx in enumerate(np.ndindex(*arr.shape[1:])):
+                    columns[f"{name}[{','.join(map(str, idx))}]"] = flat[:, j]
+        table = pa.table(columns).replace_schema_metadata({"cogblocks": json.dumps(meta)})
+        pq.write_table(table, path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Trace:
+        """Read a trace written by :meth:`save` (``.npz`` or ``.parquet``)."""
+        path = Path(path)
+        if _trace_kind(path) == "npz":
+            with np.load(path, allow_pickle=False) as stored:
+                meta = _trace_meta(path, str(stored["meta"]) if "meta" in stored.files else None)
+                signals = {name: stored[f"signal{i}"] for i, name in enumerate(meta["signals"])}
+                return cls(stored["t"], signals, meta["units"])
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(path)
+        raw = (table.schema.metadata or {}).get(b"cogblocks")
+        meta = _trace_meta(path, None if raw is None else raw.decode())
+        t = table.column("t").to_numpy()
+        signals = {}
+        for name in meta["signals"]:
+            shape = tuple(meta["shapes"][name])
+            if not shape:
+                signals[name] = table.column(name).to_numpy()
+                continue
+            cols = [table.column(f"{name}[{','.join(map(str, idx))}]").to_numpy() for idx in np.ndindex(*shape)]
+            signals[name] = np.stack(cols, axis=1).reshape((len(t), *shape))
+        return cls(t, signals, meta["units"])
+
+
+_TRACE_FORMAT = "cogblocks.trace/1"
+
+
+def _trace_kind(path: Path) -> str:
+    suffix = path.suffix.lower()
+    if suffix not in (".npz", ".parquet"):
+        raise ValueError(f"{path}: a trace is saved as .npz or .parquet, got {suffix or 'no suffix'!r}")
+    return suffix[1:]
+
+
+def _trace_meta(path: Path, raw: str | None) -> dict[str, Any]:
+    meta = None if raw is None else json.loads(raw)
+    if not isinstance(meta, dict) or meta.get("format") != _TRACE_FORMAT:
+        raise ValueError(f"{path}: not a cogblocks trace (no {_TRACE_FORMAT!r} metadata)")
+    return meta
