@@ -8,6 +8,8 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from cogblocks.experiments.cli import add_sweep_parser
+
 __all__ = ["main"]
 
 
@@ -164,6 +166,7 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--duration", type=float, default=300.0, help="simulated seconds (default 300)")
     _common(demo, trace=True)
     demo.set_defaults(handler=_run_demo)
+    add_sweep_parser(commands)
     return parser
 
 
