@@ -208,9 +208,9 @@ class _Reader:
         self.loaded: dict[str, Any] = {}
 
     def fail(self, where: str, exc: Exception) -> Exception:
-        place = f" block {where!r}" if where else ""
+        place = f" block {where!r}:" if where else ""
         message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-        error = type(exc)(f"{self.source}:{place}: {message}")
+        error = type(exc)(f"{self.source}:{place} {message}")
         error.__cause__ = exc
         return error
 
