@@ -7,11 +7,14 @@ arrays as nested lists with their dtype, signal specs as their fields, blocks gi
 networks go to files beside the diagram (``<name>.data/``: ``.npz`` without pickles, ``.pt`` state
 dicts loaded with ``weights_only=True``). No code is stored and nothing is evaluated when loading.
 
+The L3 policies of a :class:`~cogblocks.blocks.motion.MotionComputer` are stored too: the DQN
+policy by its network's state dict, the look-ahead policy by its model (plain data).
+
 What cannot be saved, with a ``TypeError`` naming the block and the parameter: callables
 (:class:`~cogblocks.blocks.Function`), ``numpy.random.Generator`` seeds (give an int seed),
-python-control systems (:class:`~cogblocks.blocks.DiscreteLTI`), L3 policies
-(:class:`~cogblocks.blocks.motion.MotionComputer`; ``MeanPhaseMotion`` is fine) and any block or
-diagram subclass outside the catalogue (pass ``blocks={"Name": cls}`` to allow your own).
+python-control systems (:class:`~cogblocks.blocks.DiscreteLTI`), policies other than those two,
+and any block or diagram subclass outside the catalogue (pass ``blocks={"Name": cls}`` to allow
+your own).
 
 A file holds a diagram's configuration, not its run state: a loaded diagram starts from tick 0.
 The architecture blocks (``L2Sync``, ``L2Amplification``) are stored by their constructor
@@ -63,6 +66,21 @@ def _networks() -> dict[str, tuple[type, Callable[[Any], dict[str, Any]], Callab
         "EncoderNet": (EncoderNet, encoder_checkpoint, load_encoder),
         "CorrectorNet": (CorrectorNet, lambda net: {}, load_corrector),
     }
+
+
+def _policy_types() -> dict[str, type]:
+    """L3 policies of a MotionComputer: the DQN by its network file, the look-ahead by its model."""
+    from cogblocks.training.l3_policies import DQNPolicy, LookaheadPolicy
+
+    return {"DQNPolicy": DQNPolicy, "LookaheadPolicy": LookaheadPolicy}
+
+
+def _model_fields(model: Any) -> dict[str, Any]:
+    """A look-ahead policy's SyncModel as its fields, the blender's parameters as a plain mapping."""
+    fields = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    if fields["blender"] is not None:
+        fields["blender"] = {f.name: getattr(fields["blender"], f.name) for f in dataclasses.fields(fields["blender"])}
+    return fields
 
 
 class _Writer:
@@ -127,13 +145,19 @@ class _Writer:
         for name, (cls, _, _) in _networks().items():
             if type(value) is cls:
                 return self.file(value, name, "network", where, self._write_network)
+        policies = _policy_types()
+        if type(value) is policies["DQNPolicy"]:
+            return self.file(value.network, "DQNPolicy", "policy", where, self._write_state_dict)
+        if type(value) is policies["LookaheadPolicy"]:
+            model = self.value(_model_fields(value.model), f"{where}: model")
+            return {"policy": "LookaheadPolicy", "model": model, "horizon": value.horizon, "every": value.replan_every}
         raise TypeError(f"{where}: a {type(value).__name__} cannot be stored in a diagram file (no code is stored)")
 
     def file(self, value: Any, name: str, kind: str, where: str, write: Callable[[Any, Path], None]) -> dict[str, str]:
         if id(value) not in self.written:
             if self.folder is None:
                 raise TypeError(f"{where}: a {name} is stored in a file beside the diagram; use save_diagram")
-            suffix = ".npz" if kind == "data" else ".pt"
+            suffix = ".npz" if kind == "data" else ".pt"  # networks and policies: torch state dicts
             relative = f"{self.folder.name}/{name.lower()}{len(self.written)}{suffix}"
             self.folder.mkdir(parents=True, exist_ok=True)
             write(value, self.folder.parent / relative)
@@ -144,6 +168,12 @@ class _Writer:
     def _write_data(value: Any, path: Path) -> None:
         fields = {f.name: np.asarray(getattr(value, f.name)) for f in dataclasses.fields(value) if f.init}
         np.savez(path, **fields)
+
+    @staticmethod
+    def _write_state_dict(value: Any, path: Path) -> None:
+        import torch
+
+        torch.save(value.state_dict(), path)
 
     @staticmethod
     def _write_network(value: Any, path: Path) -> None:
@@ -273,9 +303,22 @@ class _Reader:
             return _signal(value["signal"])
         if "block" in value:
             return self.block(value["block"], where)
-        if "data" in value or "network" in value:
+        if value.get("policy") == "LookaheadPolicy":
+            return self.lookahead(value, where)
+        if "data" in value or "network" in value or "policy" in value:
             return self.file(value, where)
         raise self.fail(where, ValueError(f"unknown parameter encoding with keys {sorted(value)}"))
+
+    def lookahead(self, value: dict[str, Any], where: str) -> Any:
+        from cogblocks.training.sync_env import BlenderParams, SyncModel
+
+        fields = self.value(value["model"], where)
+        try:
+            if fields["blender"] is not None:
+                fields["blender"] = BlenderParams(**fields["blender"])
+            return _policy_types()["LookaheadPolicy"](SyncModel(**fields), value["horizon"], value["every"])
+        except (ValueError, TypeError, KeyError) as exc:
+            raise self.fail(where, exc) from exc
 
     def file(self, value: dict[str, str], where: str) -> Any:
         relative = value["file"]
@@ -290,6 +333,10 @@ class _Reader:
                 with np.load(path, allow_pickle=False) as stored:
                     fields = {k: stored[k].item() if stored[k].ndim == 0 else stored[k] for k in stored.files}
                 self.loaded[relative] = cls(**fields)
+            elif "policy" in value:
+                if value["policy"] != "DQNPolicy":
+                    raise self.fail(where, ValueError(f"unknown policy type {value['policy']!r}"))
+                self.loaded[relative] = _policy_types()["DQNPolicy"].from_file(path)
             else:
                 known = _networks()
                 if value["network"] not in known:

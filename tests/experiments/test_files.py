@@ -147,6 +147,24 @@ def test_errors_are_those_of_python_and_name_the_file(tmp_path):
         diagram_from_dict({"format": "other"})
 
 
+class HoldPolicy:
+    """An L3 policy of the user's: it always holds the frequency."""
+
+    def reset(self, omega_init):
+        pass
+
+    def act(self, context):
+        return 5
+
+
+@pytest.mark.parametrize("motion", ["dqn", "lookahead"])
+def test_l3_policies_are_stored(tmp_path, motion):
+    loaded = load_diagram(save_diagram(pop_sync(1, motion=motion), tmp_path / "sync.json"))
+    assert type(loaded["l2.motion"].policy) is type(pop_sync(1, motion=motion)["l2.motion"].policy)
+    trace = same_run(pop_sync(1, motion=motion), loaded, 400, probes=["l2.theta_ref"])
+    assert np.ptp(trace["l2.theta_ref"]) > 1
+
+
 class Doubler(Block):
     """A block outside the catalogue."""
 
@@ -169,11 +187,9 @@ def test_what_cannot_be_saved_is_refused_by_name():
     d.add("arms", ArmPositions(3, seed=np.random.default_rng(0)))
     with pytest.raises(TypeError, match=r"arms: parameter 'seed': a Generator cannot be stored"):
         diagram_to_dict(d)
-    from cogblocks.training.l3_policies import LookaheadPolicy
-
     g = TABLE2[1]
-    motion = MotionComputer(LookaheadPolicy.for_group(g), n=g.n, assisted=g.assisted, gain=g.gain, omega_init=4.0)
-    with pytest.raises(TypeError, match=r"l2: parameter 'motion': parameter 'policy': a LookaheadPolicy cannot"):
+    motion = MotionComputer(HoldPolicy(), n=g.n, assisted=g.assisted, gain=g.gain, omega_init=4.0)
+    with pytest.raises(TypeError, match=r"l2: parameter 'motion': parameter 'policy': a HoldPolicy cannot"):
         diagram_to_dict(pop_sync(1, motion=motion))
     d = Diagram()
     d.add("double", Doubler(3.0))
