@@ -18,9 +18,10 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from cogblocks.blocks import KuramotoGroup, OrderParameter, Probe
+from cogblocks.blocks import Probe
 from cogblocks.experiments.sweep import sweep
 from cogblocks.sim import Diagram
+from cogblocks.sync import KuramotoGroup, OrderParameter
 
 GOAL_SPEEDUP = 1.7
 WORKERS = 2

@@ -1,13 +1,13 @@
 """Diagrams as files: plain data (JSON, or YAML with PyYAML) naming catalogue blocks, their parameters and wires.
 
-A block is stored by its catalogue name (:func:`cogblocks.blocks.catalogue.public_blocks`) and the
+A block is stored by its catalogue name (:func:`cogblocks.catalogue.public_blocks`) and the
 arguments it was constructed with (:attr:`cogblocks.sim.Block.init_arguments`), as plain data:
 arrays as nested lists with their dtype, signal specs as their fields, blocks given to a block
 (``L2Sync(motion=...)``, ``L1(estimator=...)``) as nested block entries. Libraries, w̃ tables and
 networks go to files beside the diagram (``<name>.data/``: ``.npz`` without pickles, ``.pt`` state
 dicts loaded with ``weights_only=True``). No code is stored and nothing is evaluated when loading.
 
-The L3 policies of a :class:`~cogblocks.blocks.motion.MotionComputer` are stored too: the DQN
+The L3 policies of a :class:`~cogblocks.sync.MotionComputer` are stored too: the DQN
 policy by its network's state dict, the look-ahead policy by its model (plain data).
 
 What cannot be saved, with a ``TypeError`` naming the block and the parameter: callables
@@ -23,14 +23,21 @@ arguments, so changes made inside them after construction (``replace``) are refu
 
 from __future__ import annotations
 
-import dataclasses
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from cogblocks.experiments.attachments import (
+    KINDS,
+    Attachment,
+    attachment_for,
+    attachments,
+    lookahead_fields,
+    lookahead_policy,
+)
 from cogblocks.sim import Block, Diagram, DiagramError, Signal
 
 __all__ = ["FORMAT", "diagram_from_dict", "diagram_to_dict", "load_diagram", "save_diagram"]
@@ -39,48 +46,11 @@ FORMAT = "cogblocks.diagram/1"
 
 
 def _catalogue(extra: Mapping[str, type] | None) -> dict[str, type]:
-    from cogblocks.blocks.catalogue import public_blocks
+    from cogblocks.catalogue import public_blocks
 
     found: dict[str, type] = dict(public_blocks())
     found.update(extra or {})
     return found
-
-
-def _data_types() -> dict[str, type]:
-    """Data classes stored as ``.npz`` files of their fields."""
-    from cogblocks.blocks.encoding import SolutionTable
-    from cogblocks.data.reach import ReachLibrary
-
-    return {"ReachLibrary": ReachLibrary, "SolutionTable": SolutionTable}
-
-
-def _networks() -> dict[str, tuple[type, Callable[[Any], dict[str, Any]], Callable[[Path], Any]]]:
-    """Networks stored as torch checkpoints: class, what to save, how to load."""
-    from cogblocks.blocks.encoding import EncoderNet, load_encoder
-    from cogblocks.blocks.rl import CorrectorNet, load_corrector
-
-    def encoder_checkpoint(net: EncoderNet) -> dict[str, Any]:
-        return {"hidden": net.hidden.out_features, "dropout": net.dropout.p}
-
-    return {
-        "EncoderNet": (EncoderNet, encoder_checkpoint, load_encoder),
-        "CorrectorNet": (CorrectorNet, lambda net: {}, load_corrector),
-    }
-
-
-def _policy_types() -> dict[str, type]:
-    """L3 policies of a MotionComputer: the DQN by its network file, the look-ahead by its model."""
-    from cogblocks.training.l3_policies import DQNPolicy, LookaheadPolicy
-
-    return {"DQNPolicy": DQNPolicy, "LookaheadPolicy": LookaheadPolicy}
-
-
-def _model_fields(model: Any) -> dict[str, Any]:
-    """A look-ahead policy's SyncModel as its fields, the blender's parameters as a plain mapping."""
-    fields = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
-    if fields["blender"] is not None:
-        fields["blender"] = {f.name: getattr(fields["blender"], f.name) for f in dataclasses.fields(fields["blender"])}
-    return fields
 
 
 class _Writer:
@@ -99,7 +69,7 @@ class _Writer:
             if name is None:
                 raise TypeError(
                     f"{where}: {type(block).__name__} is not in the block catalogue "
-                    "(cogblocks.blocks.catalogue.public_blocks()); pass blocks={name: class} to save it"
+                    "(cogblocks.catalogue.public_blocks()); pass blocks={name: class} to save it"
                 )
             params = block.init_arguments
             if isinstance(block, Diagram):
@@ -139,49 +109,23 @@ class _Writer:
             return {"signal": _spec(value)}
         if isinstance(value, Block):
             return {"block": self.block(value, where)}
-        for name, cls in _data_types().items():
-            if type(value) is cls:
-                return self.file(value, name, "data", where, self._write_data)
-        for name, (cls, _, _) in _networks().items():
-            if type(value) is cls:
-                return self.file(value, name, "network", where, self._write_network)
-        policies = _policy_types()
-        if type(value) is policies["DQNPolicy"]:
-            return self.file(value.network, "DQNPolicy", "policy", where, self._write_state_dict)
-        if type(value) is policies["LookaheadPolicy"]:
-            model = self.value(_model_fields(value.model), f"{where}: model")
-            return {"policy": "LookaheadPolicy", "model": model, "horizon": value.horizon, "every": value.replan_every}
+        attached = attachment_for(value)
+        if attached is not None:
+            return self.file(value, *attached, where)
+        lookahead = lookahead_fields(value)
+        if lookahead is not None:
+            return {"policy": "LookaheadPolicy", **{k: self.value(v, f"{where}: {k}") for k, v in lookahead.items()}}
         raise TypeError(f"{where}: a {type(value).__name__} cannot be stored in a diagram file (no code is stored)")
 
-    def file(self, value: Any, name: str, kind: str, where: str, write: Callable[[Any, Path], None]) -> dict[str, str]:
+    def file(self, value: Any, name: str, attachment: Attachment, where: str) -> dict[str, str]:
         if id(value) not in self.written:
             if self.folder is None:
                 raise TypeError(f"{where}: a {name} is stored in a file beside the diagram; use save_diagram")
-            suffix = ".npz" if kind == "data" else ".pt"  # networks and policies: torch state dicts
-            relative = f"{self.folder.name}/{name.lower()}{len(self.written)}{suffix}"
+            relative = f"{self.folder.name}/{name.lower()}{len(self.written)}{attachment.suffix}"
             self.folder.mkdir(parents=True, exist_ok=True)
-            write(value, self.folder.parent / relative)
-            self.written[id(value)] = {kind: name, "file": relative}
+            attachment.write(value, self.folder.parent / relative)
+            self.written[id(value)] = {attachment.kind: name, "file": relative}
         return self.written[id(value)]
-
-    @staticmethod
-    def _write_data(value: Any, path: Path) -> None:
-        fields = {f.name: np.asarray(getattr(value, f.name)) for f in dataclasses.fields(value) if f.init}
-        np.savez(path, **fields)
-
-    @staticmethod
-    def _write_state_dict(value: Any, path: Path) -> None:
-        import torch
-
-        torch.save(value.state_dict(), path)
-
-    @staticmethod
-    def _write_network(value: Any, path: Path) -> None:
-        import torch
-
-        _, extra, _ = _networks()[type(value).__name__]
-        meta = dict(getattr(value, "checkpoint", {}) or {})
-        torch.save({**meta, **extra(value), "state_dict": value.state_dict()}, path)
 
 
 def _check_unchanged(diagram: Diagram, params: dict[str, Any], where: str) -> None:
@@ -304,44 +248,25 @@ class _Reader:
         if "block" in value:
             return self.block(value["block"], where)
         if value.get("policy") == "LookaheadPolicy":
-            return self.lookahead(value, where)
-        if "data" in value or "network" in value or "policy" in value:
+            fields = {k: self.value(v, where) for k, v in value.items() if k != "policy"}
+            try:
+                return lookahead_policy(fields)
+            except (ValueError, TypeError, KeyError) as exc:
+                raise self.fail(where, exc) from exc
+        if any(kind in value for kind in KINDS):
             return self.file(value, where)
         raise self.fail(where, ValueError(f"unknown parameter encoding with keys {sorted(value)}"))
-
-    def lookahead(self, value: dict[str, Any], where: str) -> Any:
-        from cogblocks.training.sync_env import BlenderParams, SyncModel
-
-        fields = self.value(value["model"], where)
-        try:
-            if fields["blender"] is not None:
-                fields["blender"] = BlenderParams(**fields["blender"])
-            return _policy_types()["LookaheadPolicy"](SyncModel(**fields), value["horizon"], value["every"])
-        except (ValueError, TypeError, KeyError) as exc:
-            raise self.fail(where, exc) from exc
 
     def file(self, value: dict[str, str], where: str) -> Any:
         relative = value["file"]
         if relative not in self.loaded:
             if self.base is None:
                 raise self.fail(where, ValueError(f"{relative} is a file beside the diagram; use load_diagram"))
-            path = self.base / relative
-            if "data" in value:
-                cls = _data_types().get(value["data"])
-                if cls is None:
-                    raise self.fail(where, ValueError(f"unknown data type {value['data']!r}"))
-                with np.load(path, allow_pickle=False) as stored:
-                    fields = {k: stored[k].item() if stored[k].ndim == 0 else stored[k] for k in stored.files}
-                self.loaded[relative] = cls(**fields)
-            elif "policy" in value:
-                if value["policy"] != "DQNPolicy":
-                    raise self.fail(where, ValueError(f"unknown policy type {value['policy']!r}"))
-                self.loaded[relative] = _policy_types()["DQNPolicy"].from_file(path)
-            else:
-                known = _networks()
-                if value["network"] not in known:
-                    raise self.fail(where, ValueError(f"unknown network type {value['network']!r}"))
-                self.loaded[relative] = known[value["network"]][2](path)
+            kind = next(k for k in KINDS if k in value)
+            attachment = attachments().get(value[kind])
+            if attachment is None or attachment.kind != kind:
+                raise self.fail(where, ValueError(f"unknown {kind} type {value[kind]!r}"))
+            self.loaded[relative] = attachment.read(self.base / relative)
         return self.loaded[relative]
 
 

@@ -30,11 +30,13 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from cogblocks.blocks.rl import ACTIONS as CORRECTOR_ACTIONS
-from cogblocks.blocks.rl import STATE_SIZE
+from cogblocks.amplification.corrector import ACTIONS as CORRECTOR_ACTIONS
+from cogblocks.amplification.corrector import STATE_SIZE
 from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.sync.model import DT, SyncModel
+from cogblocks.sync.motion import ACTIONS, OMEGA_L3_LIMIT
 from cogblocks.training.amplification_env import AmplificationEnv, Episodes
-from cogblocks.training.sync_env import ACTIONS, DT, OMEGA_L3_LIMIT, SyncEnv, SyncModel
+from cogblocks.training.sync_env import SyncEnv
 
 __all__ = ["SYNC_ID", "CORRECTOR_ID", "CorrectorEnv", "SyncL3Env", "SyncL3VectorEnv", "register_envs"]
 

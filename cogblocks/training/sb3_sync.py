@@ -5,10 +5,10 @@ Usage::
     python -m cogblocks.training.sb3_sync --timesteps 200000 --seed 0 --out sb3.zip [--groups 1,2,3] [--random N]
 
 It trains ``stable_baselines3.DQN`` (an MLP of 128 and 64 ReLU units, as
-:class:`~cogblocks.training.l3_policies.L3QNetwork`; γ = 0.99, the reward of the project's trainer)
+:class:`~cogblocks.sync.dqn_policy.L3QNetwork`; γ = 0.99, the reward of the project's trainer)
 on :class:`~cogblocks.training.gym_envs.SyncL3Env` over Table 2's groups, then evaluates its greedy
 policy with :func:`~cogblocks.training.sync_env.evaluate` on the same groups as the shipped
-:class:`~cogblocks.training.l3_policies.DQNPolicy` and the :class:`LookaheadPolicy` (and on
+:class:`~cogblocks.sync.DQNPolicy` and the :class:`LookaheadPolicy` (and on
 ``--random N`` held-out groups when ``cogblocks.data.groups.random_groups`` exists). The project's
 trainer (:mod:`cogblocks.training.sync_dqn`) stays the reproducible reference: SB3 is a second opinion.
 """
@@ -24,15 +24,16 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.data.groups import SyncGroup
-from cogblocks.training.l3_policies import DQNPolicy, L3Context, LookaheadPolicy
+from cogblocks.data import groups as group_data
+from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.sync import DQNPolicy, L3Context, LookaheadPolicy
 from cogblocks.training.sync_env import evaluate
 
 __all__ = ["SB3Policy", "compare", "main", "train_sb3"]
 
 
 class SB3Policy:
-    """The greedy action of a stable-baselines3 model, as an :class:`~cogblocks.blocks.motion.L3Policy`."""
+    """The greedy action of a stable-baselines3 model, as an :class:`~cogblocks.sync.L3Policy`."""
 
     def __init__(self, model: Any) -> None:
         self.model = model
@@ -91,11 +92,15 @@ def compare(model: Any, groups: dict[str, SyncGroup]) -> list[dict[str, Any]]:
 
 
 def _groups(numbers: Sequence[int], random: int | None, seed: int) -> dict[str, SyncGroup]:
-    from cogblocks.experiments.sync import random_group_set, table2_groups
-
-    groups = table2_groups(numbers)
+    unknown = [n for n in numbers if n not in TABLE2]
+    if unknown:
+        raise ValueError(f"Table 2 has groups {sorted(TABLE2)}, got {unknown}")
+    groups = {str(n): TABLE2[n] for n in numbers}
     if random:
-        groups.update(random_group_set(random, split="test", seed=seed))
+        make = getattr(group_data, "random_groups", None)
+        if make is None:
+            raise ValueError("random groups need cogblocks.data.groups.random_groups")
+        groups.update({f"test{i}": g for i, g in enumerate(make(random, split="test", seed=seed))})
     return groups
 
 

@@ -6,17 +6,15 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.blocks import Constant, Function, Gain, Integrator, KuramotoGroup, Probe
-from cogblocks.blocks.encoding import load_encoder, solution_table
-from cogblocks.blocks.group import ArmPositions
-from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
-from cogblocks.blocks.rl import RLCorrector, load_corrector
+from cogblocks.amplification import RLCorrector, load_corrector, load_encoder, solution_table
+from cogblocks.blocks import Constant, Function, Gain, Integrator, Probe
 from cogblocks.data.groups import TABLE2
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import pop_amplification
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.experiments.files import diagram_from_dict, diagram_to_dict, load_diagram, save_diagram
 from cogblocks.sim import Block, Diagram, DiagramError, Signal, Simulator
+from cogblocks.sync import ArmPositions, KuramotoGroup, MeanPhaseMotion, MotionComputer
 
 torch.set_num_threads(1)
 

@@ -8,10 +8,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from cogblocks.blocks.core import Probe
-from cogblocks.blocks.group import KuramotoGroup, OrderParameter
+from cogblocks.blocks import Probe
 from cogblocks.experiments.sweep import SweepWarning, grid_points, save_results, sweep, sweep_seeds
 from cogblocks.sim import Diagram, Simulator
+from cogblocks.sync import KuramotoGroup, OrderParameter
 
 # the test module is not importable by the workers: send its functions by value
 cloudpickle.register_pickle_by_value(sys.modules[__name__])

@@ -10,7 +10,7 @@ gymnasium = pytest.importorskip("gymnasium", reason="the rl extra (gymnasium) is
 
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
-from cogblocks.blocks.encoding import load_encoder, solution_table  # noqa: E402
+from cogblocks.amplification import load_encoder, solution_table  # noqa: E402
 from cogblocks.data.groups import TABLE2  # noqa: E402
 from cogblocks.data.reach import generate_reach_library  # noqa: E402
 from cogblocks.training.amplification_env import AmplificationEnv, record_episodes  # noqa: E402

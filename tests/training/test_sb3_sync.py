@@ -11,7 +11,7 @@ import torch  # noqa: E402
 from stable_baselines3 import DQN  # noqa: E402
 
 from cogblocks.data.groups import TABLE2  # noqa: E402
-from cogblocks.training.l3_policies import DQNPolicy  # noqa: E402
+from cogblocks.sync import DQNPolicy  # noqa: E402
 from cogblocks.training.sb3_sync import SB3Policy, main  # noqa: E402
 from cogblocks.training.sync_env import SyncEnv, evaluate  # noqa: E402
 
