@@ -159,7 +159,7 @@ class HoldPolicy:
 def test_l3_policies_are_stored(tmp_path, motion):
     loaded = load_diagram(save_diagram(pop_sync(1, motion=motion), tmp_path / "sync.json"))
     assert type(loaded["l2.motion"].policy) is type(pop_sync(1, motion=motion)["l2.motion"].policy)
-    trace = same_run(pop_sync(1, motion=motion), loaded, 400, probes=["l2.theta_ref"])
+    trace = same_run(pop_sync(1, motion=motion), loaded, 150, probes=["l2.theta_ref"])
     assert np.ptp(trace["l2.theta_ref"]) > 1
 
 
