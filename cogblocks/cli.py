@@ -8,6 +8,8 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from cogblocks.live.cli import add_live_parser
+
 __all__ = ["main"]
 
 
@@ -159,6 +161,7 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--duration", type=float, default=300.0, help="simulated seconds (default 300)")
     _common(demo)
     demo.set_defaults(handler=_run_demo)
+    add_live_parser(commands)
     return parser
 
 
