@@ -269,7 +269,7 @@ class LSLInlet(Block):
             value = self._x[-1] if now - newest <= self.hold else np.nan
         else:
             value = self._interpolate(now - self.lag)
-        self.y.value[...] = np.reshape(value, self.shape)
+        self.y.value.flat[:] = value  # a sample, or a NaN for every channel
 
     def _interpolate(self, at: float) -> np.ndarray | float:
         ts, xs = self._ts[-self._count :], self._x[-self._count :]
