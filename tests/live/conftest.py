@@ -56,7 +56,7 @@ def _namespace_command() -> tuple[str, ...] | None:
     return prefix if probe.returncode == 0 else None
 
 
-# per test file: {test name: (outcome, report)} from its run in a network namespace
+# {test name: (outcome, report)} from their run in a network namespace, per folder (or per test)
 _CHILD_RESULTS: dict[object, dict[str, tuple[str, str]]] = {}
 
 
@@ -87,11 +87,13 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     prefix = _namespace_command()
     if prefix is None:
         return None  # run here, on the machine-only config alone
-    key = pyfuncitem.path if "PYTEST_XDIST_WORKER" not in os.environ else pyfuncitem.nodeid
+    here = pyfuncitem.path.parent
+    key = here if "PYTEST_XDIST_WORKER" not in os.environ else pyfuncitem.nodeid
     if key not in _CHILD_RESULTS:
-        # one child per test file; under xdist, where another worker may run its neighbours, per test
-        same_file = [i.nodeid for i in pyfuncitem.session.items if i.path == pyfuncitem.path]
-        nodeids = same_file if key == pyfuncitem.path else [pyfuncitem.nodeid]
+        # one child for every live test of the session; under xdist, where other workers run some of them,
+        # one per test (test names are unique in this folder)
+        neighbours = [i.nodeid for i in pyfuncitem.session.items if i.path.parent == here]
+        nodeids = neighbours if key == here else [pyfuncitem.nodeid]
         _CHILD_RESULTS[key] = _run_in_namespace(prefix, pyfuncitem.config, nodeids)
     results = _CHILD_RESULTS[key]
     outcome, text = results.get(pyfuncitem.name, ("failed", next(iter(results.values()))[1]))
