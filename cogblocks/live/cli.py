@@ -28,8 +28,9 @@ def _run_live(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         return 130
     try:
-        report = run_realtime(compiled, args.duration, 1.0 / DT, record=bool(args.save), record_raw=bool(args.save),
-                              save=args.save)
+        report = run_realtime(
+            compiled, args.duration, 1.0 / DT, record=bool(args.save), record_raw=bool(args.save), save=args.save
+        )
     finally:
         for block in compiled.blocks.values():
             if hasattr(block, "close"):

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pylsl
 
-from cogblocks.sim import Block, DiagramError
+from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number, flag, one_of, shape_arg, unit_arg, wrapped_arg
 
 __all__ = ["LSLInlet", "LSLOutlet"]
@@ -138,7 +138,9 @@ class LSLInlet(Block):
         self.hold = finite_number(self, "hold", hold, low=0.0, low_open=True)
         self.timeout = finite_number(self, "timeout", timeout, low=0.0, low_open=True)
         self.record = flag(self, "record", record)
-        self.add_output("y", shape=self.shape, unit=self.unit, wrapped=self.wrapped, initial=np.full(self.shape, np.nan))
+        self.add_output(
+            "y", shape=self.shape, unit=self.unit, wrapped=self.wrapped, initial=np.full(self.shape, np.nan)
+        )
         self.add_output("age_ms", unit="ms", initial=np.inf)
         self.add_output("fresh", dtype=bool)
         self.inlet: pylsl.StreamInlet | None = None
@@ -366,9 +368,7 @@ class LSLOutlet(Block):
         labels = self.channel_names or [f"{self.stream_name}{i}" for i in range(n)]
         if len(labels) != n:
             raise self._fail(f"{len(labels)} channel name(s) for an input of {n} channel(s) (shape {spec.shape})")
-        info = pylsl.StreamInfo(
-            self.stream_name, self.stream_type, n, 1.0 / self.dt, pylsl.cf_double64, self.source_id
-        )
+        info = pylsl.StreamInfo(self.stream_name, self.stream_type, n, 1.0 / self.dt, pylsl.cf_double64, self.source_id)
         channels = info.desc().append_child("channels")
         for label in labels:
             channel = channels.append_child("channel")

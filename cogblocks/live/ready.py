@@ -35,9 +35,7 @@ def live_phase(in_stream: str, out_stream: str, *, unit: str = "mm", timeout: fl
     return _wire(PhaseEstimator(unit=unit), "p", "theta", inlet, LSLOutlet(out_stream, stream_type="Phase"))
 
 
-def live_sync(
-    in_stream: str, out_stream: str, *, group: int = 1, motion: str = "dqn", timeout: float = 5.0
-) -> Diagram:
+def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = "dqn", timeout: float = 5.0) -> Diagram:
     """The participants' phases in (one channel each, rad), the avatar's phase θ_L2 out.
 
     The L2 architecture of the PoP of Social Connectedness (:class:`~cogblocks.diagrams.sync.L2Sync`)
@@ -55,9 +53,7 @@ def live_sync(
     return _wire(arch, "theta", "theta_l2", inlet, LSLOutlet(out_stream, stream_type="Phase"))
 
 
-def live_l1(
-    in_stream: str, out_stream: str, *, delay: float = 0.1, unit: str = "mm", timeout: float = 5.0
-) -> Diagram:
+def live_l1(in_stream: str, out_stream: str, *, delay: float = 0.1, unit: str = "mm", timeout: float = 5.0) -> Diagram:
     """A 3-channel marker stream in, the L1 avatar's delay-compensated 3D position out.
 
     :class:`~cogblocks.blocks.L1` with a constant-acceleration Kalman filter on three axes predicts

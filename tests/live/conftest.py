@@ -64,8 +64,23 @@ def _run_in_namespace(prefix: tuple[str, ...], config: pytest.Config, nodeids: l
     """Run the tests in a child pytest inside a fresh network namespace; their outcomes by test name."""
     with tempfile.TemporaryDirectory() as tmp:
         junit = os.path.join(tmp, "junit.xml")
-        command = [*prefix, sys.executable, "-m", "pytest", "-q", "-p", "no:randomly", "-p", "no:xdist",
-                   "-p", "no:cacheprovider", "-p", "no:hypothesispytest", f"--junitxml={junit}", *nodeids]
+        command = [
+            *prefix,
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "no:randomly",
+            "-p",
+            "no:xdist",
+            "-p",
+            "no:cacheprovider",
+            "-p",
+            "no:hypothesispytest",
+            f"--junitxml={junit}",
+            *nodeids,
+        ]
         env = {**os.environ, _INSIDE: "1"}
         child = subprocess.run(command, cwd=config.rootpath, env=env, capture_output=True, text=True, timeout=300)
         output = child.stdout[-6000:] + child.stderr[-2000:]

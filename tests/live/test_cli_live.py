@@ -16,7 +16,10 @@ ROOT = Path(__file__).resolve().parents[2]
 def _cli(*args):
     return subprocess.Popen(
         [sys.executable, "-m", "cogblocks.cli", "live", *args],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
 
 
@@ -35,18 +38,26 @@ def test_l1_live_prints_its_figures_as_json(lsl, streamer, stream_name, capsys):
     received = []
     reader = threading.Thread(target=lambda: received.append(_read_all(lsl, f"{stream_name}-avatar")), daemon=True)
     reader.start()
-    code = main(["live", "l1", "--in", f"{stream_name}-marker", "--out", f"{stream_name}-avatar", "--duration",
-                 "1.5", "--json"])
+    code = main(
+        ["live", "l1", "--in", f"{stream_name}-marker", "--out", f"{stream_name}-avatar", "--duration", "1.5", "--json"]
+    )
     reader.join(timeout=10.0)
     assert code == 0
     result = json.loads(capsys.readouterr().out)
-    assert set(result) == {"ticks", "late_ticks", "tick_ms_p50", "tick_ms_p99", "samples_in", "samples_out",
-                           "max_age_ms"}
+    assert set(result) == {
+        "ticks",
+        "late_ticks",
+        "tick_ms_p50",
+        "tick_ms_p99",
+        "samples_in",
+        "samples_out",
+        "max_age_ms",
+    }
     assert result["ticks"] == result["samples_out"] == 150
     # the marker streamed about 150 samples during the run, and those buffered since the inlet opened
     assert 140 <= result["samples_in"] <= 400 and 0.0 <= result["max_age_ms"] < 100.0
     assert 0.0 < result["tick_ms_p50"] <= result["tick_ms_p99"]
-    (info, samples), = received
+    ((info, samples),) = received
     assert (info.type(), info.nominal_srate(), info.channel_count()) == ("MoCap", 100.0, 3)
     assert samples.shape[1] == 3 and len(samples) > 50
     del marker
@@ -70,8 +81,9 @@ def _read_all(lsl, name):
 def test_ctrl_c_stops_the_run_and_saves_the_trace(lsl, streamer, stream_name, tmp_path):
     streamer(f"{stream_name}-arm", lambda t: 150.0 * np.cos(2 * np.pi * t))
     saved = tmp_path / "run.npz"
-    cli = _cli("phase", "--in", f"{stream_name}-arm", "--out", f"{stream_name}-phase", "--duration", "60",
-               "--save", str(saved))
+    cli = _cli(
+        "phase", "--in", f"{stream_name}-arm", "--out", f"{stream_name}-phase", "--duration", "60", "--save", str(saved)
+    )
     reader = _reader(lsl, f"{stream_name}-phase")
     reader.pull_sample(timeout=5.0)  # it runs
     time.sleep(0.5)
@@ -90,8 +102,22 @@ def test_ctrl_c_stops_the_run_and_saves_the_trace(lsl, streamer, stream_name, tm
 def test_a_missing_input_stream_is_a_clear_error(lsl, stream_name, capsys):
     from cogblocks.cli import main
 
-    code = main(["live", "sync", "--in", f"{stream_name}-nobody", "--out", "x", "--duration", "1", "--timeout", "0.3",
-                 "--policy", "mean"])
+    code = main(
+        [
+            "live",
+            "sync",
+            "--in",
+            f"{stream_name}-nobody",
+            "--out",
+            "x",
+            "--duration",
+            "1",
+            "--timeout",
+            "0.3",
+            "--policy",
+            "mean",
+        ]
+    )
     captured = capsys.readouterr()
     assert code == 2 and captured.out == ""
     assert f"cogblocks: error: inlet: no LSL stream with name '{stream_name}-nobody' found within 0.3 s" in captured.err

@@ -38,14 +38,20 @@ def test_a_missing_stream_is_named_in_the_error(lsl, stream_name):
 
     d = Diagram()
     d.add("arm", LSLInlet(f"{stream_name}-absent", stream_type="MoCap", timeout=0.3))
-    with pytest.raises(TimeoutError, match=rf"arm: no LSL stream with name '{stream_name}-absent' and type 'MoCap' "
-                       r"found within 0.3 s"):
+    with pytest.raises(
+        TimeoutError,
+        match=rf"arm: no LSL stream with name '{stream_name}-absent' and type 'MoCap' "
+        r"found within 0.3 s",
+    ):
         d.compile(0.01)
 
 
 def test_channel_count_unit_and_format_are_checked_against_the_port(lsl, stream_name):
-    keep = [_outlet(lsl, f"{stream_name}-two", channels=2), _outlet(lsl, f"{stream_name}-cm", unit="cm"),
-            _outlet(lsl, f"{stream_name}-str", fmt=lsl.cf_string)]
+    keep = [
+        _outlet(lsl, f"{stream_name}-two", channels=2),
+        _outlet(lsl, f"{stream_name}-cm", unit="cm"),
+        _outlet(lsl, f"{stream_name}-str", fmt=lsl.cf_string),
+    ]
     with pytest.raises(DiagramError, match=r"has 2 channel\(s\), the port expects shape \(3,\) = 3 channel"):
         _inlets(f"{stream_name}-two", a={"shape": (3,), "unit": "mm"})
     with pytest.raises(DiagramError, match=r"declares unit\(s\) \['cm'\], the port expects 'mm'"):
@@ -145,8 +151,9 @@ def test_a_stream_that_stops_gives_nan_and_an_ageing_sample(lsl, stream_name):
 
 def test_wrapped_angles_are_interpolated_along_the_shorter_arc(lsl, stream_name):
     outlet = _outlet(lsl, stream_name, unit="rad")
-    compiled, blocks = _inlets(stream_name, a={"unit": "rad", "wrapped": True, "mode": "interpolate", "lag": 0.0,
-                                                "hold": 10.0})
+    compiled, blocks = _inlets(
+        stream_name, a={"unit": "rad", "wrapped": True, "mode": "interpolate", "lag": 0.0, "hold": 10.0}
+    )
     t0 = lsl.local_clock() + 0.2
     outlet.push_sample([2 * np.pi - 0.1], t0)
     outlet.push_sample([0.1], t0 + 1.0)
@@ -172,7 +179,11 @@ def test_outlet_publishes_every_tick_with_its_metadata(lsl, stream_name):
     inlet = lsl.StreamInlet(found[0])
     info = inlet.info(2.0)
     assert (info.type(), info.channel_count(), info.nominal_srate(), info.source_id()) == (
-        "MoCap", 4, 100.0, f"cogblocks-{stream_name}")
+        "MoCap",
+        4,
+        100.0,
+        f"cogblocks-{stream_name}",
+    )
     chan = info.desc().child("channels").child("channel")
     labels_units = []
     while not chan.empty():

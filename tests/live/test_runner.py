@@ -49,8 +49,15 @@ def test_ticks_keep_their_deadlines_after_a_stall():
     np.testing.assert_array_equal(report.trace["k"], np.arange(60))
     np.testing.assert_allclose(report.trace.t, 0.01 * np.arange(60))
     summary = report.summary()
-    assert set(summary) == {"ticks", "late_ticks", "tick_ms_p50", "tick_ms_p99", "samples_in", "samples_out",
-                            "max_age_ms"}
+    assert set(summary) == {
+        "ticks",
+        "late_ticks",
+        "tick_ms_p50",
+        "tick_ms_p99",
+        "samples_in",
+        "samples_out",
+        "max_age_ms",
+    }
     assert summary["tick_ms_p50"] == pytest.approx(np.median(report.tick_ms))
     assert summary["samples_in"] == summary["samples_out"] == 0 and np.isnan(summary["max_age_ms"])
 
@@ -124,7 +131,8 @@ def test_the_phase_diagram_tracks_a_sine_streamed_at_100_hz(lsl, streamer, strea
     assert len(t_raw) == report.samples_in >= 450
     np.testing.assert_allclose(x_raw, amp * np.cos(2 * np.pi * freq * t_raw), atol=0.05)
     assert np.count_nonzero(trace["fresh"]) >= 250 and report.max_age_ms == np.max(
-        trace["age_ms"][np.isfinite(trace["age_ms"])])
+        trace["age_ms"][np.isfinite(trace["age_ms"])]
+    )
     # error against the true phase of the sample each tick used (published stamp minus the sample's age)
     sampled = stamps - 1e-3 * trace["age_ms"]
     true = np.mod(2 * np.pi * freq * sampled, 2 * np.pi)
