@@ -77,7 +77,9 @@ class LSLInlet(Block):
         Seconds before the tick at which ``interpolate`` reads the stream (>= 0; unused by ``latest``).
     hold : float
         Longest time in seconds that a sample stands for: a newest sample older than ``hold``, or a
-        gap between two samples longer than ``hold``, gives NaN (> 0).
+        gap between two samples longer than ``hold``, gives NaN (> 0). Ages count from the samples'
+        timestamps (their capture, for a tracker that stamps them so): for a stream that arrives late,
+        ``hold`` must exceed its delay.
     timeout : float
         Seconds to wait for the stream when compiled (> 0).
     record : bool

@@ -57,10 +57,11 @@ def live_l1(in_stream: str, out_stream: str, *, delay: float = 0.1, unit: str = 
     """A 3-channel marker stream in, the L1 avatar's delay-compensated 3D position out.
 
     :class:`~cogblocks.blocks.L1` with a constant-acceleration Kalman filter on three axes predicts
-    ``delay`` seconds ahead; the output stream (type ``"MoCap"``) has channels ``x``, ``y``, ``z``.
+    ``delay`` seconds ahead (samples up to ``delay`` + 50 ms old are used); the output stream (type
+    ``"MoCap"``) has channels ``x``, ``y``, ``z``.
     """
     arch = L1(delay, estimator=KalmanEstimator("ca", dims=3, unit=unit))
-    inlet = LSLInlet(in_stream, shape=(3,), unit=unit, timeout=timeout)
+    inlet = LSLInlet(in_stream, shape=(3,), unit=unit, hold=delay + 0.05, timeout=timeout)
     outlet = LSLOutlet(out_stream, stream_type="MoCap", channel_names=["x", "y", "z"])
     return _wire(arch, "p", "p_avatar", inlet, outlet)
 
