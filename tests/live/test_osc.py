@@ -12,8 +12,10 @@ from cogblocks.sim import Diagram
 @pytest.fixture
 def osc_server():
     """A python-osc server on an ephemeral loopback port; yields (port, received messages)."""
-    from pythonosc.dispatcher import Dispatcher
+    dispatch = pytest.importorskip("pythonosc.dispatcher", reason="python-osc (the live extra) is not installed")
     from pythonosc.osc_server import ThreadingOSCUDPServer
+
+    Dispatcher = dispatch.Dispatcher
 
     received: list[tuple[str, tuple]] = []
     dispatcher = Dispatcher()
@@ -54,6 +56,7 @@ def test_each_tick_sends_one_message_with_the_port_value(osc_server):
 
 
 def test_constructor_refuses_what_osc_cannot_address():
+    pytest.importorskip("pythonosc", reason="python-osc (the live extra) is not installed")
     from cogblocks.live import OSCSender
 
     with pytest.raises(ValueError, match=r"port must be an integer in \[1, 65535\], got 70000"):
