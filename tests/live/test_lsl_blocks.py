@@ -1,8 +1,11 @@
 """LSLInlet and LSLOutlet on real LSL streams (loopback only, see conftest.py)."""
 
 import inspect
+import subprocess
+import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,11 +29,22 @@ def _inlets(name, **modes):
     return d.compile(0.01), blocks
 
 
-def test_every_live_block_states_its_bad_data_policy():
+def test_every_live_block_states_its_bad_data_policy(lsl):
     from cogblocks.live import LSLInlet, LSLOutlet, OSCSender
 
     for cls in (LSLInlet, LSLOutlet, OSCSender):
         assert "Bad data policy" in inspect.getdoc(cls), cls.__name__
+
+
+def test_the_core_package_and_the_command_line_load_no_live_dependency():
+    code = (
+        "import sys, cogblocks, cogblocks.sim, cogblocks.blocks, cogblocks.diagrams.sync, cogblocks.cli, "
+        "cogblocks.live, cogblocks.live.cli, cogblocks.live.config, cogblocks.live.runner; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('pylsl', 'pythonosc')))"
+    )
+    root = Path(__file__).resolve().parents[2]
+    out = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
 
 
 def test_a_missing_stream_is_named_in_the_error(lsl, stream_name):
