@@ -121,8 +121,9 @@ def _offline_steps(compiled, samples: np.ndarray) -> np.ndarray:
     """Step times of the diagram's L2 block back to back, fed the samples the live run received."""
     from cogblocks.blocks import Playback
     from cogblocks.data.groups import TABLE2
-    from cogblocks.diagrams.sync import MOTIONS, L2Sync
+    from cogblocks.diagrams.sync import MOTIONS
     from cogblocks.sim import Diagram
+    from cogblocks.sync import L2Sync
 
     group = TABLE2[1]
     d = Diagram()

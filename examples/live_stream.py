@@ -32,8 +32,9 @@ if args.stream is None:
     script = Path(__file__).with_name("stream_markers.py")
     streamer = subprocess.Popen([sys.executable, str(script), str(args.seconds + 5), "--name", args.stream])
 
-from cogblocks.blocks import L1, KalmanEstimator, PhaseEstimator  # noqa: E402
 from cogblocks.live import LSLInlet, LSLOutlet, run_realtime  # noqa: E402
+from cogblocks.phase import PhaseEstimator  # noqa: E402
+from cogblocks.sensing import L1, KalmanEstimator  # noqa: E402
 from cogblocks.sim import Diagram  # noqa: E402
 
 DT = 0.01  # 100 Hz
@@ -62,16 +63,22 @@ finally:
         streamer.wait()
 
 s = report.summary()
-print(f"{s['ticks']} ticks at 100 Hz: compute p50 {s['tick_ms_p50']:.2f} ms, p99 {s['tick_ms_p99']:.2f} ms, "
-      f"{s['late_ticks']} tick(s) past their slot; {s['samples_in']} samples in, {s['samples_out']} out, "
-      f"oldest sample used {s['max_age_ms']:.0f} ms")
+print(
+    f"{s['ticks']} ticks at 100 Hz: compute p50 {s['tick_ms_p50']:.2f} ms, p99 {s['tick_ms_p99']:.2f} ms, "
+    f"{s['late_ticks']} tick(s) past their slot; {s['samples_in']} samples in, {s['samples_out']} out, "
+    f"oldest sample used {s['max_age_ms']:.0f} ms"
+)
 # the avatar should lead the late stream by about DELAY: find the lag that best lines them up
 sample, shown = report.trace["sample"], report.trace["p_avatar"]
 good = np.isfinite(sample) & np.isfinite(shown)
 half = len(sample) // 2
-errors = [np.nanmean(np.abs(shown[half - lag:-lag] - sample[half:])[good[half:] & good[half - lag:-lag]])
-          for lag in range(1, 30)]
-print(f"the avatar leads the stream it reads by {10 * (1 + int(np.argmin(errors)))} ms (the stream is late by "
-      f"{1e3 * DELAY:.0f} ms); {np.count_nonzero(~np.isfinite(sample))} ticks had no usable sample, "
-      f"{np.count_nonzero(~np.isfinite(shown))} showed no avatar position")
+errors = [
+    np.nanmean(np.abs(shown[half - lag : -lag] - sample[half:])[good[half:] & good[half - lag : -lag]])
+    for lag in range(1, 30)
+]
+print(
+    f"the avatar leads the stream it reads by {10 * (1 + int(np.argmin(errors)))} ms (the stream is late by "
+    f"{1e3 * DELAY:.0f} ms); {np.count_nonzero(~np.isfinite(sample))} ticks had no usable sample, "
+    f"{np.count_nonzero(~np.isfinite(shown))} showed no avatar position"
+)
 print(f"phase at the end: {report.trace['theta'][-1]:.2f} rad")

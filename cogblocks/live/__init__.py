@@ -23,25 +23,24 @@ __all__ = [
     "save_report",
 ]
 
-_HOMES = {
-    "LSLInlet": "lsl",
-    "LSLOutlet": "lsl",
-    "OSCSender": "osc",
-    "RealtimeReport": "runner",
-    "run_realtime": "runner",
-    "save_report": "runner",
-    "LIVE_DIAGRAMS": "ready",
-    "live_l1": "ready",
-    "live_phase": "ready",
-    "live_sync": "ready",
+_LAZY = {
+    "LSLInlet": "cogblocks.live.lsl",
+    "LSLOutlet": "cogblocks.live.lsl",
+    "OSCSender": "cogblocks.live.osc",
+    "RealtimeReport": "cogblocks.live.runner",
+    "run_realtime": "cogblocks.live.runner",
+    "save_report": "cogblocks.live.runner",
+    "LIVE_DIAGRAMS": "cogblocks.live.ready",
+    "live_l1": "cogblocks.live.ready",
+    "live_phase": "cogblocks.live.ready",
+    "live_sync": "cogblocks.live.ready",
 }
 
 
 def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module 'cogblocks.live' has no attribute {name!r}")
-    return getattr(importlib.import_module(f"cogblocks.live.{home}"), name)
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'cogblocks.live' has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from cogblocks.blocks import L1, KalmanEstimator, PhaseEstimator
 from cogblocks.data.groups import TABLE2
-from cogblocks.diagrams.sync import MOTIONS, L2Sync
+from cogblocks.diagrams.sync import MOTIONS
 from cogblocks.live.lsl import LSLInlet, LSLOutlet
+from cogblocks.phase import PhaseEstimator
+from cogblocks.sensing import L1, KalmanEstimator
 from cogblocks.sim import Block, Diagram
+from cogblocks.sync import L2Sync
 
 __all__ = ["LIVE_DIAGRAMS", "live_l1", "live_phase", "live_sync"]
 
@@ -27,7 +29,7 @@ def _wire(arch: Block, port_in: str, port_out: str, inlet: LSLInlet, outlet: LSL
 
 
 def live_phase(in_stream: str, out_stream: str, *, unit: str = "mm", timeout: float = 5.0) -> Diagram:
-    """A 1-channel position stream in, its phase (:class:`~cogblocks.blocks.PhaseEstimator`) out.
+    """A 1-channel position stream in, its phase (:class:`~cogblocks.phase.PhaseEstimator`) out.
 
     The output stream (type ``"Phase"``) carries ``theta`` in rad, wrapped to ``[0, 2π)``.
     """
@@ -38,7 +40,7 @@ def live_phase(in_stream: str, out_stream: str, *, unit: str = "mm", timeout: fl
 def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = "dqn", timeout: float = 5.0) -> Diagram:
     """The participants' phases in (one channel each, rad), the avatar's phase θ_L2 out.
 
-    The L2 architecture of the PoP of Social Connectedness (:class:`~cogblocks.diagrams.sync.L2Sync`)
+    The L2 architecture of the PoP of Social Connectedness (:class:`~cogblocks.sync.L2Sync`)
     for a group of Table 2 (its size fixes the channel count) with the motion computer ``motion``
     (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`; the trained DQN policy by default).
     Phases are interpolated on the circle.
@@ -56,7 +58,7 @@ def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = 
 def live_l1(in_stream: str, out_stream: str, *, delay: float = 0.1, unit: str = "mm", timeout: float = 5.0) -> Diagram:
     """A 3-channel marker stream in, the L1 avatar's delay-compensated 3D position out.
 
-    :class:`~cogblocks.blocks.L1` with a constant-acceleration Kalman filter on three axes predicts
+    :class:`~cogblocks.sensing.L1` with a constant-acceleration Kalman filter on three axes predicts
     ``delay`` seconds ahead (samples up to ``delay`` + 50 ms old are used); the output stream (type
     ``"MoCap"``) has channels ``x``, ``y``, ``z``.
     """

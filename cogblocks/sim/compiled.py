@@ -73,12 +73,11 @@ class CompiledDiagram:
 
     # -- flattening ----------------------------------------------------------
     def _flatten(self, d, prefix, period, leaves, periods, drivers, external) -> None:
-        from cogblocks.sim.diagram import Diagram
 
         own_period = d.period if d.period is not None else period
         for name, child in d._children.items():
             path = prefix + name
-            if isinstance(child, Diagram):
+            if child.composite:
                 self._flatten(child, path + ".", own_period, leaves, periods, drivers, external)
             else:
                 leaves[path] = child
@@ -92,17 +91,15 @@ class CompiledDiagram:
                 external[name] = self._leaf_inputs(d, name)
 
     def _leaf_output(self, block: Block, port: str) -> Output:
-        from cogblocks.sim.diagram import Diagram
 
-        while isinstance(block, Diagram):
+        while block.composite:
             child, port = block._exposed_out[port]
             block = block._children[child]
         return block._outputs[port]
 
     def _leaf_inputs(self, block: Block, port: str) -> list[Input]:
-        from cogblocks.sim.diagram import Diagram
 
-        if not isinstance(block, Diagram):
+        if not block.composite:
             return [block._inputs[port]]
         found: list[Input] = []
         for child, child_port in block._exposed_in[port]:

@@ -66,7 +66,7 @@ class Simulator:
         self._probes = self._resolve_probes(probes)
 
     def _resolve_probes(self, probes) -> dict[str, tuple[np.ndarray, str]]:
-        from cogblocks.blocks.core import Probe
+        from cogblocks.sim.probe import Probe
 
         found: dict[str, tuple[np.ndarray, str]] = {}
         for path, block in self.compiled.blocks.items():

@@ -112,8 +112,8 @@ def _offline(arch_port, arch, data, unit, wrapped=False):
 
 
 def test_the_phase_diagram_tracks_a_sine_streamed_at_100_hz(lsl, streamer, stream_name):
-    from cogblocks.blocks import PhaseEstimator
     from cogblocks.live import live_phase, run_realtime
+    from cogblocks.phase import PhaseEstimator
 
     freq, amp = 1.0, 150.0
     source = streamer(f"{stream_name}-arm", lambda t: amp * np.cos(2 * np.pi * freq * t))
@@ -146,10 +146,11 @@ def test_the_phase_diagram_tracks_a_sine_streamed_at_100_hz(lsl, streamer, strea
 
 
 def test_sync_and_l1_run_live_as_they_run_offline(lsl, streamer, stream_name):
-    from cogblocks.blocks import L1, KalmanEstimator
     from cogblocks.data.groups import TABLE2
-    from cogblocks.diagrams.sync import MOTIONS, L2Sync
+    from cogblocks.diagrams.sync import MOTIONS
     from cogblocks.live import live_l1, live_sync, run_realtime
+    from cogblocks.sensing import L1, KalmanEstimator
+    from cogblocks.sync import L2Sync
 
     group = TABLE2[1]
     omega = np.asarray(group.omega)
