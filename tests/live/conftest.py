@@ -28,21 +28,6 @@ from cogblocks.live.config import machine_only_config
 
 _INSIDE = "COGBLOCKS_LIVE_NETNS"
 
-if "pylsl" in sys.modules and os.environ.get(_INSIDE) != "1":
-    raise RuntimeError("tests/live: pylsl was imported before the machine-only LSL config could be set")
-if os.environ.get(_INSIDE) != "1":
-    os.environ["LSLAPICFG"] = str(
-        machine_only_config(tempfile.mkdtemp(prefix="cogblocks-lsl-"), f"cogblocks-test-{os.getpid()}")
-    )
-
-try:
-    import pylsl
-except (ImportError, RuntimeError) as exc:  # pylsl raises RuntimeError when it cannot load liblsl
-    pylsl = None
-    _PYLSL_PROBLEM = f"pylsl cannot load liblsl: {exc}"
-else:
-    _PYLSL_PROBLEM = ""
-
 
 @functools.cache
 def _namespace_command() -> tuple[str, ...] | None:
@@ -54,6 +39,25 @@ def _namespace_command() -> tuple[str, ...] | None:
     prefix = ("unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$@"', "sh")
     probe = subprocess.run([*prefix, "true"], capture_output=True)
     return prefix if probe.returncode == 0 else None
+
+
+if os.environ.get(_INSIDE) != "1":
+    # the children of a namespace run read the config afresh; a run in this process needs it before pylsl
+    if "pylsl" in sys.modules and _namespace_command() is None:
+        raise RuntimeError("tests/live: pylsl was imported before the machine-only LSL config could be set")
+    os.environ["LSLAPICFG"] = str(
+        machine_only_config(tempfile.mkdtemp(prefix="cogblocks-lsl-"), f"cogblocks-test-{os.getpid()}")
+    )
+elif not os.path.isfile(os.environ.get("LSLAPICFG", "")):
+    raise RuntimeError(f"tests/live: {_INSIDE}=1 is for the namespace runs, which inherit LSLAPICFG; it is not set")
+
+try:
+    import pylsl
+except (ImportError, RuntimeError) as exc:  # pylsl raises RuntimeError when it cannot load liblsl
+    pylsl = None
+    _PYLSL_PROBLEM = f"pylsl cannot load liblsl: {exc}"
+else:
+    _PYLSL_PROBLEM = ""
 
 
 # {test name: (outcome, report)} from their run in a network namespace, per folder (or per test)

@@ -119,18 +119,18 @@ def test_the_phase_diagram_tracks_a_sine_streamed_at_100_hz(lsl, streamer, strea
     source = streamer(f"{stream_name}-arm", lambda t: amp * np.cos(2 * np.pi * freq * t))
     compiled = live_phase(f"{stream_name}-arm", f"{stream_name}-phase").compile(0.01)
     reader = _published(lsl, f"{stream_name}-phase")
-    report = run_realtime(compiled, 5.0, record=True, record_raw=True)
+    report = run_realtime(compiled, 4.0, record=True, record_raw=True)
     theta, stamps = _drain(reader, report.ticks)
     trace = report.trace
     # every tick published its phase, stamped when it ran, and the test inlet read exactly those values
-    assert report.samples_out == report.ticks == len(theta) == 500
+    assert report.samples_out == report.ticks == len(theta) == 400
     np.testing.assert_array_equal(theta[:, 0], trace["theta"])
     assert np.all(np.diff(stamps) > 0) and np.median(np.diff(stamps)) == pytest.approx(0.01, abs=5e-4)
     # the raw samples are the sine at their (clock-corrected) stamps, and the ticks used them as they came
     t_raw, x_raw = report.raw["inlet"]
-    assert len(t_raw) == report.samples_in >= 450
+    assert len(t_raw) == report.samples_in >= 350
     np.testing.assert_allclose(x_raw, amp * np.cos(2 * np.pi * freq * t_raw), atol=0.05)
-    assert np.count_nonzero(trace["fresh"]) >= 250 and report.max_age_ms == np.max(
+    assert np.count_nonzero(trace["fresh"]) >= 200 and report.max_age_ms == np.max(
         trace["age_ms"][np.isfinite(trace["age_ms"])]
     )
     # error against the true phase of the sample each tick used (published stamp minus the sample's age)
