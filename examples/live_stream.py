@@ -1,8 +1,8 @@
 """A live 100 Hz loop on a motion-capture stream over Lab Streaming Layer: the avatar's position and phase out.
 
-The L1 avatar (Kalman estimate, the stream's 100 ms of delay predicted away) and a 1D phase estimator
-with a Kalman front end read one tracked marker through an ``LSLInlet``, and two ``LSLOutlet`` blocks
-publish the avatar's position and phase for a renderer (Unity, Unreal: see docs/live.md).
+The L1 avatar (Kalman estimate, the stream's 100 ms of delay and the inlet's 20 ms predicted away)
+and a 1D phase estimator with a Kalman front end read one tracked marker through an ``LSLInlet``,
+and two ``LSLOutlet`` blocks publish the avatar's position and phase for a renderer (Unity, Unreal: see docs/live.md).
 ``run_realtime`` paces the ticks. Without ``--in``, the marker comes from ``stream_markers.py``,
 started here, and LSL stays on this machine.
 
@@ -30,7 +30,7 @@ if args.stream is None:
         use_machine_only_config("cogblocks-examples")
     args.stream = f"cogblocks-marker-{os.getpid()}"
     script = Path(__file__).with_name("stream_markers.py")
-    streamer = subprocess.Popen([sys.executable, str(script), str(args.seconds + 5), "--name", args.stream])
+    streamer = subprocess.Popen([sys.executable, str(script), str(args.seconds + 60), "--name", args.stream])
 
 from cogblocks.live import LSLInlet, LSLOutlet, run_realtime  # noqa: E402
 from cogblocks.phase import PhaseEstimator  # noqa: E402
@@ -39,11 +39,12 @@ from cogblocks.sim import Diagram  # noqa: E402
 
 DT = 0.01  # 100 Hz
 DELAY = 0.1  # how late the marker arrives
+BACK = DELAY + 0.02  # how far back the inlet reads it: where two received samples surround the time read
 
 d = Diagram()
-# a sample stands for its tick until it is 50 ms older than the stream's delay
-marker = d.add("marker", LSLInlet(args.stream, unit="mm", hold=DELAY + 0.05, timeout=10.0))
-avatar = d.add("l1", L1(DELAY, estimator=KalmanEstimator("ca", dims=1)))
+# the marker resampled on the tick grid, BACK seconds back; L1 predicts that far ahead
+marker = d.add("marker", LSLInlet(args.stream, unit="mm", mode="interpolate", lag=BACK, timeout=10.0))
+avatar = d.add("l1", L1(BACK, estimator=KalmanEstimator("ca", dims=1)))
 phase = d.add("phase", PhaseEstimator(front_end="kalman"))
 d.add("position_out", LSLOutlet("cogblocks-avatar-position", stream_type="MoCap"))
 d.add("phase_out", LSLOutlet("cogblocks-avatar-phase", stream_type="Phase"))
@@ -68,7 +69,7 @@ print(
     f"{s['late_ticks']} tick(s) past their slot; {s['samples_in']} samples in, {s['samples_out']} out, "
     f"oldest sample used {s['max_age_ms']:.0f} ms"
 )
-# the avatar should lead the late stream by about DELAY: find the lag that best lines them up
+# the avatar should lead what the inlet reads by BACK: find the lag that best lines them up
 sample, shown = report.trace["sample"], report.trace["p_avatar"]
 good = np.isfinite(sample) & np.isfinite(shown)
 half = len(sample) // 2
@@ -77,8 +78,8 @@ errors = [
     for lag in range(1, 30)
 ]
 print(
-    f"the avatar leads the stream it reads by {10 * (1 + int(np.argmin(errors)))} ms (the stream is late by "
-    f"{1e3 * DELAY:.0f} ms); {np.count_nonzero(~np.isfinite(sample))} ticks had no usable sample, "
+    f"the avatar leads the stream it reads by {10 * (1 + int(np.argmin(errors)))} ms (the inlet reads "
+    f"{1e3 * BACK:.0f} ms back); {np.count_nonzero(~np.isfinite(sample))} ticks had no usable sample, "
     f"{np.count_nonzero(~np.isfinite(shown))} showed no avatar position"
 )
 print(f"phase at the end: {report.trace['theta'][-1]:.2f} rad")
