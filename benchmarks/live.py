@@ -11,9 +11,15 @@ busy, and once without it. LSL uses the machine-only configuration (``cogblocks.
   load; reference: the 10 ms budget.
 * ``live.sync.offline_step_ms_p99``: the same diagram stepped back to back without pacing (same
   inputs, same load); reference: the 10 ms budget. ``tick_ms_p99`` over it is the cost of running live.
-* ``live.sync.latency_ms_p50`` / ``_p99``: from a sample pushed by the peer to the output computed
-  from it received by the peer's inlet (ticks where the sample was fresh), under load; reference:
-  the 10 ms tick period. Waiting for the next tick (0-10 ms, uniform) is inherent.
+* ``live.sync.latency_ms_p50`` / ``_p99``: from the stream time that an output reflects (the inlet
+  interpolates the stream 20 ms before the tick's nominal time, where two pushed samples surround
+  it) to that output received by the peer's inlet, under load; reference: the 10 ms tick period.
+  The 20 ms of the inlet's lag are its floor.
+* ``live.phase.interpolate_error_rad``: mean phase error of the live ``phase`` diagram on a 1 Hz
+  sine streamed at 100 Hz (30 s, 8 s with --quick, from the fourth second on), against the true
+  phase at the stream time each output stands for, with the inlet interpolating on the tick grid,
+  under load; reference: the same with the inlet giving the latest sample, whose values jitter
+  with the ticks.
 
     python benchmarks/run.py --only live [--quick]      (two 60 s runs; 10 s with --quick)
 """
@@ -32,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from cogblocks.live.config import use_machine_only_config
+from cogblocks.sim import Block
 
 BUDGET_MS = 10.0
 DT = 0.01
@@ -111,7 +118,7 @@ def _live_run(seconds: float, load: bool, tag: str) -> dict:
     stamps, received = np.array(log["stamps"]), np.array(log["received"])
     if len(stamps) != report.ticks:
         raise RuntimeError(f"the peer read {len(stamps)} outputs of {report.ticks} ticks")
-    # the sample behind tick k was taken age_ms before the tick, which stamped its output
+    # the value behind tick k stands for the stream age_ms before the tick, which stamped its output
     fresh = trace["fresh"].astype(bool) & np.isfinite(trace["age_ms"])
     latency_ms = 1e3 * (received - stamps)[fresh] + trace["age_ms"][fresh]
     return {"report": report, "offline_ms": offline_ms, "latency_ms": latency_ms}
@@ -140,13 +147,75 @@ def _offline_steps(compiled, samples: np.ndarray) -> np.ndarray:
     return 1e3 * times
 
 
+class _SampleTimes(Block):
+    """Note, each tick, the stream time that an inlet's value stands for."""
+
+    def __init__(self, inlet: Block) -> None:
+        super().__init__()
+        self.inlet = inlet
+        self.add_input("u", unit=None)
+        self.times: list[float] = []
+
+    def output(self, k: int) -> None:
+        self.times.append(self.inlet.sample_time)
+
+
+def _phase_error(mode: str, seconds: float) -> float:
+    """Mean phase error of the live phase diagram with its inlet in ``mode``, on a 1 Hz sine at 100 Hz."""
+    import pylsl
+
+    from cogblocks.live import live_phase, run_realtime
+
+    name = f"bench-arm-{mode}"
+    info = pylsl.StreamInfo(name, "MoCap", 1, 100.0, pylsl.cf_double64, f"{name}-src")
+    info.desc().append_child("channels").append_child("channel").append_child_value("unit", "mm")
+    outlet = pylsl.StreamOutlet(info)
+    stop = threading.Event()
+
+    def stream() -> None:
+        start, k = time.perf_counter(), 0
+        while not stop.is_set():
+            stamp = pylsl.local_clock()
+            outlet.push_sample([150.0 * np.cos(2 * np.pi * stamp)], stamp)
+            k += 1
+            time.sleep(max(0.0, start + k * DT - time.perf_counter()))
+
+    threading.Thread(target=stream, daemon=True).start()
+    try:
+        d = live_phase(name, f"bench-phase-{mode}")
+        d["inlet"].mode = mode
+        times = d.add("times", _SampleTimes(d["inlet"]))
+        d.connect(d["inlet"].y, times.u)
+        report = run_realtime(d.compile(DT), seconds, 1.0 / DT, record=True)
+    finally:
+        stop.set()
+    error = np.angle(np.exp(1j * (report.trace["theta"] - 2 * np.pi * np.array(times.times))))
+    return float(np.mean(np.abs(error[300:])))  # once the estimator has seen three periods
+
+
 def run(quick: bool = False) -> Iterator[dict]:
-    """Yield the live pacing and latency figures of the sync diagram."""
+    """Yield the phase error by inlet mode, and the live pacing and latency figures of the sync diagram."""
     if "pylsl" not in sys.modules:
         use_machine_only_config(f"cogblocks-bench-{time.time_ns()}")
     elif "LSLAPICFG" not in os.environ:
         raise RuntimeError("benchmarks.live: pylsl is loaded without an lsl_api.cfg; run it in its own process")
     seconds = 10.0 if quick else 60.0
+    phase_seconds = 8.0 if quick else 30.0
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        errors = {mode: _phase_error(mode, phase_seconds) for mode in ("interpolate", "latest")}
+    finally:
+        busy.kill()
+        busy.wait()
+    yield {
+        "name": "live.phase.interpolate_error_rad",
+        "value": errors["interpolate"],
+        "unit": "rad",
+        "reference": errors["latest"],
+        "ratio": errors["interpolate"] / errors["latest"],
+        "seconds": phase_seconds,
+        "load": "one busy core",
+    }
     loaded = _live_run(seconds, load=True, tag="loaded")
     clean = _live_run(seconds, load=False, tag="clean")
     rep, ref = loaded["report"], clean["report"]
