@@ -59,6 +59,8 @@ live = d.compile(DT)
 try:
     report = run_realtime(live, args.seconds, 1 / DT, record=True)
 finally:
+    for block in (marker, live.blocks["position_out"], live.blocks["phase_out"]):
+        block.close()  # before the streamer goes, so that the inlet does not try to reconnect
     if streamer is not None:
         streamer.terminate()
         streamer.wait()

@@ -16,7 +16,8 @@ __all__ = ["MACHINE_ONLY", "machine_only_config", "use_machine_only_config"]
 
 #: An ``lsl_api.cfg`` that discovers and serves streams on the loopback interface only: discovery is
 #: machine-scoped, every multicast group is 127.0.0.1, the only known peer is 127.0.0.1, IPv6 is off
-#: and the outlets' servers listen on 127.0.0.1, so no LSL packet leaves the machine.
+#: and the outlets' servers listen on 127.0.0.1, so no LSL packet leaves the machine. liblsl logs
+#: warnings and errors only.
 MACHINE_ONLY = """\
 [ports]
 IPv6 = disable
@@ -33,6 +34,9 @@ GlobalAddresses = {127.0.0.1}
 [lab]
 KnownPeers = {127.0.0.1}
 SessionID = {session}
+
+[log]
+level = -1
 """
 
 
