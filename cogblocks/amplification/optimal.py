@@ -205,11 +205,17 @@ class OptimalBlender(Block):
         super().__init__(period=period)
         if not isinstance(library, ReachLibrary):
             raise ValueError(f"OptimalBlender: library must be a ReachLibrary, got {type(library).__name__}")
-        networks = [network] if isinstance(network, EncoderNet) else list(network)
-        if not networks or not all(isinstance(n, EncoderNet) for n in networks):
-            raise ValueError(
-                f"OptimalBlender: network must be an EncoderNet or a non-empty sequence of them, got {network!r:.80}"
-            )
+        networks = [network] if isinstance(network, EncoderNet) else network
+        if (
+            not isinstance(networks, (list, tuple))
+            or not networks
+            or not all(isinstance(n, EncoderNet) for n in networks)
+        ):
+            given = type(network).__name__ if not isinstance(networks, (list, tuple)) else f"{len(networks)} items"
+            if isinstance(networks, (list, tuple)) and networks:
+                given += " of types " + ", ".join(sorted({type(n).__name__ for n in networks}))
+            raise ValueError(f"OptimalBlender: network must be an EncoderNet or a non-empty list of them, got {given}")
+        networks = list(networks)
         self.e_des = one_of(self, "e_des", e_des, (0, 1))
         if table is not None and (not isinstance(table, SolutionTable) or table.e_des != self.e_des):
             raise ValueError(

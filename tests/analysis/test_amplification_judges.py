@@ -112,9 +112,9 @@ def test_optimal_blender_meets_every_member(setup):
 
 
 def test_optimal_blender_rejects_a_bad_ensemble(setup):
-    with pytest.raises(ValueError, match="sequence of them"):
+    with pytest.raises(ValueError, match="non-empty list of them, got 0 items"):
         OptimalBlender(setup.movements, [], setup.table)
-    with pytest.raises(ValueError, match="sequence of them"):
+    with pytest.raises(ValueError, match="got 2 items of types EncoderNet, str"):
         OptimalBlender(setup.movements, [setup.encoder, "net"], setup.table)
 
 
