@@ -208,11 +208,11 @@ def run_amplification(
     dict
         Per variant: ``encoded`` (share decided as ``e_des`` by the encoder), ``terminal_ok`` (share
         whose final position is within 20 mm of the human's), ``final_distance_mm`` (mean) and ``n``;
-        for ``"optimised"`` also ``solve_ms_p50`` and ``solve_ms_p99`` (CPU time per decision, ms) and
-        ``fallbacks`` (decisions that kept the previous plan or the table's blend). Judged
-        independently: ``judges`` (share each judge decides as ``e_des``), ``encoded_independent``
-        (the ensemble judge's share) and ``judges_agreement`` (share of movements on which the two
-        judges agree whether ``e_des`` is encoded).
+        for ``"optimised"`` also ``solve_ms_p50`` and ``solve_ms_p99`` (CPU time per decision, ms),
+        ``fallbacks`` (decisions that kept the previous plan or the table's blend) and ``decisions``
+        (decisions that ran the solver). Judged independently: ``judges`` (share each judge decides
+        as ``e_des``), ``encoded_independent`` (the ensemble judge's share) and ``judges_agreement``
+        (share of movements on which the two judges agree whether ``e_des`` is encoded).
     """
     if setup is None:
         if seed is not None and judges is None:
@@ -267,7 +267,9 @@ def run_amplification(
         }
         if variant == "optimised":
             p50, p99 = np.percentile(solve_ms, [50, 99]) if solve_ms else (float("nan"), float("nan"))
-            results[variant].update(solve_ms_p50=float(p50), solve_ms_p99=float(p99), fallbacks=fallbacks)
+            results[variant].update(
+                solve_ms_p50=float(p50), solve_ms_p99=float(p99), fallbacks=fallbacks, decisions=len(solve_ms)
+            )
     return results
 
 

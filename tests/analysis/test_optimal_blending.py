@@ -140,7 +140,17 @@ def test_run_amplification_and_cli(monkeypatch, capsys):
     judged = {"judges", "encoded_independent", "judges_agreement"}
     assert (
         set(row)
-        == {"encoded", "terminal_ok", "final_distance_mm", "n", "solve_ms_p50", "solve_ms_p99", "fallbacks"} | judged
+        == {
+            "encoded",
+            "terminal_ok",
+            "final_distance_mm",
+            "n",
+            "solve_ms_p50",
+            "solve_ms_p99",
+            "fallbacks",
+            "decisions",
+        }
+        | judged
     )
     assert row["n"] == 1 and 0 < row["solve_ms_p50"] <= row["solve_ms_p99"]
     monkeypatch.setattr(
