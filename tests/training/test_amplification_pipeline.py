@@ -87,3 +87,23 @@ def test_run_pipeline_on_a_renamed_library(library, tmp_path):
         for row in direction.values():
             assert row["n"] == 1 and row["encoded_independent"] == row["judges"]["ensemble"]
             assert set(row["judges"]) == {"ensemble", "kinematic"}
+
+
+def test_mat_label_under_another_name(tmp_path):
+    import scipy.io
+
+    rng = np.random.default_rng(0)
+    trials = [("ASSOCIATION", 3, 1), ("EXTINCTION", 1, 0), ("BASELINE", 1, 1)]
+    array = np.empty((1, 3), dtype=[(f, object) for f in ("Vxyzf", "Fear", "Phase", "Subphase")])
+    for k, (phase, subphase, label) in enumerate(trials):
+        array[0, k]["Vxyzf"] = rng.normal(size=(20, 3))
+        array[0, k]["Fear"] = label
+        array[0, k]["Phase"] = phase
+        array[0, k]["Subphase"] = subphase
+    path = tmp_path / "mine.mat"
+    scipy.io.savemat(path, {"VelocityData": {"P01": array}})
+    with pytest.raises(DataFormatError, match=r"missing field 'Condition' \(fields: Vxyzf, Fear.*--label-field NAME"):
+        load_library(path)
+    mapped = load_library(path, label_field="Fear", dt=0.005)
+    # baseline trials are no fear whatever their label; the others keep it
+    assert mapped.fear.tolist() == [True, False, False] and mapped.dt == 0.005
