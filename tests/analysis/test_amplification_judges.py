@@ -17,6 +17,7 @@ from cogblocks.amplification.judges import (
     load_ensemble,
 )
 from cogblocks.data.features import resample_movement
+from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import amplification_judges, amplification_setup, pop_amplification
 from cogblocks.sim import Simulator
 from cogblocks.training.encoder import EncoderConfig
@@ -77,8 +78,9 @@ def test_shipped_ensembles_are_disjoint_and_reproducible(setup):
     assert judges[0].checkpoint["role"] == "judges"
     # the judges' training is seeded: a tiny run twice gives the same networks
     config = EncoderConfig(epochs=1)
-    a = train_judges(setup.library, setup.train[:60], config, seed=0, members=2, log=None)
-    b = train_judges(setup.library, setup.train[:60], config, seed=0, members=2, log=None)
+    small = generate_reach_library(3, n_subjects=2, n_fear=15, n_no_fear=15)
+    a = train_judges(small, np.arange(24), config, seed=0, members=2, log=None)
+    b = train_judges(small, np.arange(24), config, seed=0, members=2, log=None)
     assert torch.equal(a[0].hidden.weight, b[0].hidden.weight)
     assert not torch.equal(a[0].hidden.weight, a[1].hidden.weight)
 
