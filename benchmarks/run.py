@@ -36,6 +36,7 @@ MODULES = [
     "benchmarks.optimal_blending",
     "benchmarks.soak",
     "benchmarks.sweep",
+    "benchmarks.live",
 ]
 
 
