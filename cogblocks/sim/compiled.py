@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import difflib
 import math
+import os
+import threading
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -10,8 +13,10 @@ import numpy as np
 
 from cogblocks.sim.block import Block
 from cogblocks.sim.errors import DiagramError, SimulationError
+from cogblocks.sim.ownership import leaf_blocks, private_copy, running_plans
 from cogblocks.sim.ports import Input, Output
 from cogblocks.sim.signal import Signal
+from cogblocks.sim.snapshot import check_snapshot, load_snapshot, save_snapshot
 
 if TYPE_CHECKING:
     from cogblocks.sim.diagram import Diagram
@@ -30,6 +35,16 @@ class CompiledDiagram:
     the per-tick work is a precomputed list of bound methods, so a tick does no
     graph work and no dictionary look-ups.
 
+    A plan owns the blocks it runs. The first plan of a diagram runs the
+    diagram's own blocks; a plan compiled while another current plan runs them
+    works on a private copy (see :mod:`cogblocks.sim.ownership`), so two plans
+    of one diagram never share state. A plan goes stale when its diagram changes
+    (``add``, ``connect``, ``expose_*``, ``replace``) and then refuses to run.
+
+    A plan is not thread-safe: run it from one thread at a time. Running it from
+    a second thread while a step or run is in progress raises
+    :class:`SimulationError` instead of silently losing ticks.
+
     Attributes
     ----------
     dt : float
@@ -38,12 +53,22 @@ class CompiledDiagram:
         Index of the next tick to run.
     blocks : dict
         Leaf blocks by dotted path, in execution order.
+    diagram : Diagram
+        The diagram the plan runs: ``source`` itself, or its private copy.
+    source : Diagram
+        The diagram that was compiled.
     """
 
     def __init__(self, diagram: Diagram, dt: float = 0.01) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise DiagramError(f"the base step dt must be a positive number of seconds, got {dt!r}")
-        self.diagram = diagram
+        self.source = diagram
+        self._revision = diagram._revision
+        self._lock = threading.Lock()
+        busy = running_plans(diagram)
+        # blocks that a current plan runs are copied, so that the two plans stay independent
+        self.diagram = private_copy(diagram, busy) if busy else diagram
+        diagram = self.diagram
         self.dt = float(dt)
         self.k = 0
         leaves: dict[str, Block] = {}
@@ -69,7 +94,27 @@ class CompiledDiagram:
         self._ticks = [ticks[p] for p in order]
         self._build_schedule()
         self._output_arrays = [(port, port.value) for b in self.blocks.values() for port in b._outputs.values()]
+        for block in leaf_blocks(diagram):
+            object.__setattr__(block, "_plan", self)
         self.reset()
+
+    @property
+    def current(self) -> bool:
+        """False once the compiled diagram has changed: the plan then refuses to run; compile again."""
+        return self.source._revision == self._revision
+
+    def _enter(self) -> None:
+        """Take the plan for one step or run: refuse a stale plan and concurrent use."""
+        if self.source._revision != self._revision:
+            raise SimulationError(
+                "the diagram changed (a block added, replaced or rewired) after this plan was compiled, so the "
+                "plan no longer runs it; compile it again (diagram.compile() or a new Simulator)"
+            )
+        if not self._lock.acquire(blocking=False):
+            raise SimulationError(
+                "this compiled diagram is already running (in another thread, or re-entered from a block); "
+                "a plan is not thread-safe: step it from one thread at a time, or compile one plan per thread"
+            )
 
     # -- flattening ----------------------------------------------------------
     def _flatten(self, d, prefix, period, leaves, periods, drivers, external) -> None:
@@ -312,11 +357,9 @@ class CompiledDiagram:
 
     def set_inputs(self, **inputs: Any) -> None:
         """Write the top-level diagram inputs for the next tick."""
+        self._check_input_names(inputs)
         for name, value in inputs.items():
-            try:
-                arr = self._external[name]
-            except KeyError:
-                raise KeyError(f"the diagram has no input {name!r}; its inputs are {list(self._external)}") from None
+            arr = self._external[name]
             given = np.asarray(value)
             if given.shape != arr.shape:
                 # no silent broadcasting: a scalar for a vector is almost always a wiring mistake
@@ -334,30 +377,46 @@ class CompiledDiagram:
                     f"input {name!r} expects {arr.dtype} values of shape {arr.shape}, got {value!r}"
                 ) from exc
 
+    def _check_input_names(self, inputs: Mapping[str, Any]) -> None:
+        for name in inputs:
+            if name not in self._external:
+                close = difflib.get_close_matches(name, self._external, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise KeyError(
+                    f"the diagram has no input {name!r}{hint}; its inputs are {list(self._external)}"
+                    + ("" if self._external else " (expose one with Diagram.expose_input)")
+                )
+
     def step(self, **inputs: Any) -> dict[str, Any]:
         """Run one tick with the given top-level inputs; return the top-level outputs.
 
         Inputs not given keep their previous value. Outputs are copies: scalars as
         ``float``, vectors as arrays. This is the call to make inside a live loop.
         """
-        missing = [n for n in self._external if n not in inputs and self.k == 0]
-        if missing:
-            raise ValueError(f"the first step needs every diagram input; missing {missing}")
-        self.set_inputs(**inputs)
-        outs, upds = self._tick_functions()(self.k)
-        k = self.k
-        for f in outs:
-            f(k)
-        result = {
-            name: (port.value.item() if port.value.ndim == 0 else port.value.copy())
-            for name, port in self._ext_outputs.items()
-        }
-        for f in upds:
-            f(k)
-        self.k = k + 1
-        if k == 0:
-            self._check_outputs_in_place()
-        return result
+        self._enter()
+        try:
+            self._check_input_names(inputs)
+            k = self.k
+            if k == 0:
+                missing = [n for n in self._external if n not in inputs]
+                if missing:
+                    raise ValueError(f"the first step needs every diagram input; missing {missing}")
+            self.set_inputs(**inputs)
+            outs, upds = self._tick_functions()(k)
+            for f in outs:
+                f(k)
+            result = {
+                name: (port.value.item() if port.value.ndim == 0 else port.value.copy())
+                for name, port in self._ext_outputs.items()
+            }
+            for f in upds:
+                f(k)
+            self.k = k + 1
+            if k == 0:
+                self._check_outputs_in_place()
+            return result
+        finally:
+            self._lock.release()
 
     def _check_outputs_in_place(self) -> None:
         for port, arr in self._output_arrays:
@@ -374,14 +433,18 @@ class CompiledDiagram:
         feed: Callable[[int], None] | None = None,
     ) -> None:
         """Run ``n_steps`` ticks; ``feed(k)`` writes inputs before, ``record(k)`` reads after the outputs."""
-        tick = self._tick_functions()
-        k = self.k
-        end = k + n_steps
-        if k == 0 and n_steps > 0:
-            self._run_ticks(tick, 0, 1, record, feed)
-            self._check_outputs_in_place()
-            k = 1
-        self._run_ticks(tick, k, end, record, feed)
+        self._enter()
+        try:
+            tick = self._tick_functions()
+            k = self.k
+            end = k + n_steps
+            if k == 0 and n_steps > 0:
+                self._run_ticks(tick, 0, 1, record, feed)
+                self._check_outputs_in_place()
+                k = 1
+            self._run_ticks(tick, k, end, record, feed)
+        finally:
+            self._lock.release()
 
     def _run_ticks(self, tick, k: int, end: int, record, feed) -> None:
         # The hot loop: kept free of attribute look-ups and allocation.
@@ -411,11 +474,15 @@ class CompiledDiagram:
 
     def reset(self) -> None:
         """Restore every block to its initial state and rewind to tick 0."""
-        for block in self.blocks.values():
-            block.reset()
-        for arr in self._external.values():
-            arr[...] = 0
-        self.k = 0
+        self._enter()
+        try:
+            for block in self.blocks.values():
+                block.reset()
+            for arr in self._external.values():
+                arr[...] = 0
+            self.k = 0
+        finally:
+            self._lock.release()
 
     def state_dict(self) -> dict[str, Any]:
         """Snapshot: the tick counter, every block's state and outputs, the diagram inputs."""
@@ -426,16 +493,31 @@ class CompiledDiagram:
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restore a snapshot taken with :meth:`state_dict` on the same diagram."""
-        if set(state.get("blocks", {})) != set(self.blocks):
-            raise ValueError(
-                f"state dict is for blocks {sorted(state.get('blocks', {}))}, this diagram has {sorted(self.blocks)}"
-            )
-        for path, block_state in state["blocks"].items():
-            self.blocks[path].load_state_dict(block_state)
-        for name, value in state.get("inputs", {}).items():
-            self._external[name][...] = value
-        self.k = int(state["k"])
+        """Restore a snapshot taken with :meth:`state_dict` on the same diagram.
+
+        Every block path, state entry, output and input is checked (names, array
+        shapes and dtypes) before anything changes: a snapshot that does not fit
+        raises ``ValueError`` naming the block and the entry, and leaves the plan
+        as it was.
+        """
+        check_snapshot(self.blocks, self._external, state)
+        self._enter()
+        try:
+            for path, block_state in state["blocks"].items():
+                self.blocks[path].load_state_dict(block_state)
+            for name, value in state["inputs"].items():
+                self._external[name][...] = value
+            self.k = int(state["k"])
+        finally:
+            self._lock.release()
+
+    def save_state(self, path: str | os.PathLike) -> None:
+        """Write :meth:`state_dict` to the ``.npz`` file ``path`` (no pickle; see :mod:`cogblocks.sim.snapshot`)."""
+        save_snapshot(self.state_dict(), path)
+
+    def load_state(self, path: str | os.PathLike) -> None:
+        """Load a snapshot written by :meth:`save_state`, checked like :meth:`load_state_dict`."""
+        self.load_state_dict(load_snapshot(path))
 
     # -- looking things up ---------------------------------------------------
     def output_port(self, path: str) -> Output:

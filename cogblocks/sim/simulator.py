@@ -104,8 +104,16 @@ class Simulator:
         return self.compiled.state_dict()
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restore a snapshot taken with :meth:`state_dict`."""
+        """Restore a snapshot taken with :meth:`state_dict`; one that does not fit changes nothing."""
         self.compiled.load_state_dict(state)
+
+    def save_state(self, path: str | os.PathLike) -> None:
+        """Write the snapshot to an ``.npz`` file; see :meth:`CompiledDiagram.save_state`."""
+        self.compiled.save_state(path)
+
+    def load_state(self, path: str | os.PathLike) -> None:
+        """Load a snapshot file written by :meth:`save_state`."""
+        self.compiled.load_state(path)
 
     def run(
         self,
@@ -113,8 +121,16 @@ class Simulator:
         *,
         n_steps: int | None = None,
         inputs: Mapping[str, Any] | None = None,
+        include_end: bool = False,
     ) -> Trace:
         """Run for ``duration`` seconds (``round(duration / dt)`` ticks) or ``n_steps`` ticks.
+
+        A run simulates *ticks*, not instants: ``run(duration=T)`` from time ``t0``
+        runs the ``T / dt`` ticks at ``t0, t0 + dt, …, t0 + T - dt`` and stops
+        with the clock at ``t0 + T``, so the next run continues at ``t0 + T`` and
+        two runs of ``T`` give exactly one run of ``2 T``. (python-control and
+        Simulink report the end point too: ``include_end=True`` runs one more tick,
+        for ``T / dt + 1`` samples ending at ``t0 + T``.)
 
         Parameters
         ----------
@@ -125,6 +141,8 @@ class Simulator:
         inputs : mapping, optional
             Values of the top-level diagram inputs: an array with one row per tick,
             a callable ``f(t) -> value``, or a constant.
+        include_end : bool
+            With ``duration``, also run the tick at the end time ``t0 + T``.
 
         Returns
         -------
@@ -132,6 +150,10 @@ class Simulator:
             The probed signals at every ``decimate``-th tick of this run.
         """
         n = self._n_steps(duration, n_steps)
+        if include_end:
+            if duration is None:
+                raise ValueError("include_end applies to run(duration=...); with n_steps, ask for the ticks you want")
+            n += 1
         compiled = self.compiled
         k0 = compiled.k
         feed = self._feeder(inputs or {}, k0, n)
@@ -177,6 +199,7 @@ class Simulator:
         return n
 
     def _feeder(self, inputs: Mapping[str, Any], k0: int, n: int) -> Callable[[int], None] | None:
+        self.compiled._check_input_names(inputs)
         missing = [name for name in self.compiled.input_names if name not in inputs]
         if missing:
             raise ValueError(f"run() needs values for the diagram inputs {missing}")
@@ -185,13 +208,17 @@ class Simulator:
         feeders: list[Callable[[int], None]] = []
         dt = self.compiled.dt
         for name, source in inputs.items():
-            if name not in self.compiled.input_names:
-                raise KeyError(f"the diagram has no input {name!r}; its inputs are {list(self.compiled.input_names)}")
             target = self.compiled._external[name]
             if callable(source):
-                feeders.append(lambda k, f=source, a=target: a.__setitem__(Ellipsis, f(k * dt)))
+                feeders.append(_callable_feeder(name, source, target, dt))
                 continue
-            arr = np.asarray(source, dtype=target.dtype)
+            try:
+                arr = np.asarray(source, dtype=target.dtype)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(
+                    f"input {name!r}: expected {target.dtype} values of shape {target.shape} (a constant) or "
+                    f"({n}, {', '.join(map(str, target.shape))}) (one row per tick), got {source!r:.80}: {exc}"
+                ) from None
             if arr.shape == target.shape:
                 target[...] = arr
                 continue
@@ -232,3 +259,19 @@ class Simulator:
                     b[i] = a
 
         return record
+
+
+def _callable_feeder(name: str, f: Callable[[float], Any], target: np.ndarray, dt: float) -> Callable[[int], None]:
+    """Feed ``target`` with ``f(t)``, refusing a value of another shape (no silent broadcasting)."""
+    shape = target.shape
+
+    def feed(k: int) -> None:
+        value = f(k * dt)
+        if np.shape(value) != shape:
+            raise ValueError(
+                f"input {name!r}: the function returned a value of shape {np.shape(value)} at t = {k * dt:g} s, "
+                f"the input expects shape {shape}"
+            )
+        target[...] = value
+
+    return feed
