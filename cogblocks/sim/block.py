@@ -222,6 +222,19 @@ class Block:
     def update(self, k: int) -> None:
         """Advance the state from tick ``k`` to the block's next tick."""
 
+    def linear_feedthrough(self) -> Mapping[tuple[str, str], Any] | None:
+        """Direct-feedthrough matrices, for a block whose outputs are affine in its feedthrough inputs.
+
+        Override it in a block whose every output is ``y = c + sum(D[y, u] @ u)`` over its
+        feedthrough inputs ``u``, with ``c`` computed from the state and the other inputs and
+        each ``D`` constant for the run. Return ``{(output, input): D}``, ``D`` of shape
+        (output size, input size) on the flattened signals; omitted pairs are zero. Called
+        after :meth:`setup`. An algebraic loop made only of such blocks is solved exactly at
+        each tick; the default, ``None``, says the block is not linear, and a loop through it
+        is refused.
+        """
+        return None
+
     def reset(self) -> None:
         """Restore the declared state and the outputs to their initial values."""
         for name, init in self._state_init.items():

@@ -13,6 +13,7 @@ import numpy as np
 
 from cogblocks.sim.block import Block
 from cogblocks.sim.errors import DiagramError, SimulationError
+from cogblocks.sim.loops import order_blocks
 from cogblocks.sim.ownership import leaf_blocks, private_copy, running_plans
 from cogblocks.sim.ports import Input, Output
 from cogblocks.sim.signal import Signal
@@ -78,7 +79,6 @@ class CompiledDiagram:
         self._flatten(diagram, "", None, leaves, periods, drivers, external)
         self._ext_outputs = {name: self._leaf_output(diagram, name) for name in diagram._exposed_out}
         self._paths = {id(b): p for p, b in leaves.items()}
-        self._drivers = drivers
         self._check_driven(leaves, drivers, external)
         self._resolve_specs(leaves, drivers, external)
         ticks = self._periods(leaves, periods)
@@ -89,7 +89,7 @@ class CompiledDiagram:
                 port.value = port.spec.zeros()
             block.setup()
         self._bind(leaves, drivers, external)
-        order = self._order(leaves, drivers)
+        order, self._loops = order_blocks(leaves, drivers, ticks, self._name)
         self.blocks = {p: leaves[p] for p in order}
         self._ticks = [ticks[p] for p in order]
         self._build_schedule()
@@ -204,6 +204,7 @@ class CompiledDiagram:
                     )
                     progressed.append(out)
             if not progressed:
+                self._refuse_open_diagram_inputs(pending, external)
                 names = ", ".join(self._name(o) for o in pending)
                 raise DiagramError(
                     f"cannot infer the spec of {names}: their inputs are fed only by other generic blocks "
@@ -227,6 +228,19 @@ class CompiledDiagram:
                 inp.spec = inp.declared.merge(spec)
         for name, port in self.diagram._outputs.items():
             port.spec = self._ext_outputs[name].spec
+
+    def _refuse_open_diagram_inputs(self, pending, external) -> None:
+        """Name the diagram inputs without a full spec that leave generic blocks with nothing to copy."""
+        for name, targets in external.items():
+            spec = self.diagram._inputs[name].spec
+            fed = [self._name(o) for o in pending if o.block._inputs[o.like] in targets]
+            if fed and not spec.concrete:
+                raise DiagramError(
+                    f"the diagram input {name!r} has no full spec ({spec}) and feeds only generic blocks "
+                    f"({', '.join(fed)}: outputs that copy the spec of their input), so nothing tells its shape "
+                    "and unit; "
+                    f"give it one: expose_input({name!r}, ..., spec=Signal(shape=..., unit=...))"
+                )
 
     def _periods(self, leaves, periods) -> dict[str, int]:
         ticks: dict[str, int] = {}
@@ -266,57 +280,17 @@ class CompiledDiagram:
                     inp.value = np.array(np.broadcast_to(inp.default, inp.spec.shape), dtype=inp.spec.dtype)
                     inp.driven = False
 
-    def _order(self, leaves, drivers) -> list[str]:
-        """Topological order over feedthrough wires; refuse algebraic loops."""
-        paths = list(leaves)
-        index = {id(b): p for p, b in leaves.items()}
-        deps: dict[str, list[tuple[str, Input]]] = {p: [] for p in paths}
-        for inp, src in drivers.items():
-            if inp.feedthrough:
-                deps[index[id(inp.block)]].append((index[id(src.block)], inp))
-        order: list[str] = []
-        state: dict[str, int] = {}  # 1 = on the stack, 2 = placed
-        for root in paths:
-            if root in state:
-                continue
-            stack: list[tuple[str, int]] = [(root, 0)]
-            state[root] = 1
-            while stack:
-                node, i = stack[-1]
-                if i < len(deps[node]):
-                    stack[-1] = (node, i + 1)
-                    nxt, _ = deps[node][i]
-                    if state.get(nxt) == 1:
-                        raise DiagramError("algebraic loop: " + self._describe_cycle(stack, nxt, deps))
-                    if nxt not in state:
-                        state[nxt] = 1
-                        stack.append((nxt, 0))
-                else:
-                    stack.pop()
-                    state[node] = 2
-                    order.append(node)
-        return order
-
-    def _describe_cycle(self, stack, start, deps) -> str:
-        nodes = [n for n, _ in stack]
-        cycle = nodes[nodes.index(start) :]
-        hops = []
-        # the stack goes from a block to the block it depends on: reverse for signal flow
-        for a, b in zip(cycle, cycle[1:] + [start], strict=True):
-            inp = next(i for src, i in deps[a] if src == b)
-            hops.append(f"{self._name(self._drivers[inp])} -> {self._name(inp)}")
-        hops.reverse()
-        return (
-            ", ".join(hops) + " (every block on it feeds its input straight to its output; break it with a UnitDelay)"
-        )
-
     # -- schedule ------------------------------------------------------------
     def _build_schedule(self) -> None:
         blocks = list(self.blocks.values())
-        # blocks that only hold a value (Constant) or are only read (Probe) need no call
-        self._outs_all = [
-            (n, b.output) for n, b in zip(self._ticks, blocks, strict=True) if type(b).output is not Block.output
-        ]
+        on_loops = {id(b) for loop in self._loops.values() for b in loop.blocks}
+        self._outs_all = []
+        for n, (path, b) in zip(self._ticks, self.blocks.items(), strict=True):
+            if path in self._loops:  # a loop's blocks are computed together, by its solver
+                self._outs_all.append((n, self._loops[path].output))
+            elif id(b) not in on_loops and type(b).output is not Block.output:
+                # blocks that only hold a value (Constant) or are only read (Probe) need no call
+                self._outs_all.append((n, b.output))
         self._upds_all = [(n, b.update) for n, b in zip(self._ticks, blocks, strict=True) if b.stateful]
         hyper = 1
         for n in set(self._ticks):
