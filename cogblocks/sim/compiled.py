@@ -354,7 +354,7 @@ class CompiledDiagram:
     def _check_input_names(self, inputs: Mapping[str, Any]) -> None:
         for name in inputs:
             if name not in self._external:
-                close = difflib.get_close_matches(name, self._external, n=1)
+                close = difflib.get_close_matches(name, self._external, n=1, cutoff=0.5)
                 hint = f" (did you mean {close[0]!r}?)" if close else ""
                 raise KeyError(
                     f"the diagram has no input {name!r}{hint}; its inputs are {list(self._external)}"

@@ -56,7 +56,7 @@ def private_copy(diagram: Any, plans: list[Any]) -> Any:
         for value in node.__dict__.values():
             _find_shared(value, memo, seen, _SEARCH_DEPTH)
     try:
-        return copy.deepcopy(diagram, memo)
+        return copy.deepcopy(diagram, dict(memo))  # deepcopy fills its memo: keep ours for the search below
     except Exception as exc:  # name the block that holds what cannot be copied
         culprit = next((b for b in leaf_blocks(diagram) if not _copyable(b, memo)), None)
         where = f"block {culprit.name!r} ({type(culprit).__name__})" if culprit is not None else "the diagram"
