@@ -87,7 +87,7 @@ def test_copies_share_networks_and_read_only_tables_not_state():
 
         def output(self, k):
             with torch.no_grad():
-                self.y.value[...] = float(self.net(torch.as_tensor(self.table[k % 3])).item())
+                self.y.value[...] = float(self.net(torch.as_tensor(self.table[k % 3], dtype=torch.float32)).item())
 
         def update(self, k):
             self.count += 1
