@@ -2,9 +2,11 @@
 linear algebraic loops, gain units, the duration convention."""
 
 import decimal
+import re
 import shutil
 import threading
 from decimal import Decimal
+from pathlib import Path
 
 import control
 import numpy as np
@@ -12,7 +14,6 @@ import pytest
 import torch
 
 from cogblocks.blocks import (
-    BackwardDifference,
     Constant,
     DiscreteLTI,
     Gain,
@@ -503,26 +504,21 @@ def test_gain_unit_multiplies_the_input_unit():
 
 
 def test_textbook_pid_from_primitives_matches_its_recursion():
+    # the PID of docs/blocks.md, run as written there
+    text = (Path(__file__).parents[2] / "docs" / "blocks.md").read_text(encoding="utf-8")
+    code = re.search(r"### A textbook PID.*?```python\n(.*?)```", text, re.S).group(1)
+    namespace: dict = {}
+    exec(code, namespace)
     kp, ki, kd, dt = 2.0, 0.7, 0.05, 0.01
     e_values = np.sin(np.arange(300) * 0.05) + 0.2
     d = Diagram()
     e = d.add("e", Playback(e_values))
-    p = d.add("p", Gain(kp))
-    i_gain = d.add("i_gain", Gain(ki, unit="1/s"))
-    i = d.add("i", Integrator())
-    de = d.add("de", BackwardDifference())
-    d_gain = d.add("d_gain", Gain(kd, unit="s"))
-    u = d.add("u", Sum("+++"))
-    d.connect(e.y, p.u, i_gain.u, de.u)
-    d.connect(i_gain.y, i.u)
-    d.connect(de.y, d_gain.u)
-    d.connect(p.y, u.u0)
-    d.connect(i.y, u.u1)
-    d.connect(d_gain.y, u.u2)
+    pid = d.add("pid", namespace["pid"](kp, ki, kd))
+    d.connect(e.y, pid.e)
     d.add("out", Probe())
-    d.connect(u.y, "out.u")
+    d.connect(pid.u, "out.u")
     got = Simulator(d, dt=dt).run(n_steps=len(e_values))["out"]
-    assert u.y.spec.unit == "1"
+    assert pid["u"].y.spec.unit == "1" and pid["i"].y.spec.unit == "1"
     integral = np.concatenate([[0.0], np.cumsum(ki * dt * e_values)[:-1]])
     derivative = np.concatenate([[0.0], np.diff(e_values) / dt])
     np.testing.assert_allclose(got, kp * e_values + integral + kd * derivative, rtol=0, atol=1e-12)
