@@ -36,11 +36,12 @@ class CompiledDiagram:
     the per-tick work is a precomputed list of bound methods, so a tick does no
     graph work and no dictionary look-ups.
 
-    A plan owns the blocks it runs. The first plan of a diagram runs the
-    diagram's own blocks; a plan compiled while another current plan runs them
-    works on a private copy (see :mod:`cogblocks.sim.ownership`), so two plans
-    of one diagram never share state. A plan goes stale when its diagram changes
-    (``add``, ``connect``, ``expose_*``, ``replace``) and then refuses to run.
+    A plan owns the blocks it runs. The latest plan of a diagram runs the
+    diagram's own blocks; compiling the diagram again moves the earlier plans
+    onto private copies of their blocks, with their state (see
+    :mod:`cogblocks.sim.ownership`), so plans of one diagram never share state.
+    A plan goes stale when its diagram changes (``add``, ``connect``,
+    ``expose_*``, ``replace``) and then refuses to run.
 
     A plan is not thread-safe: run it from one thread at a time. Running it from
     a second thread while a step or run is in progress raises
@@ -55,7 +56,8 @@ class CompiledDiagram:
     blocks : dict
         Leaf blocks by dotted path, in execution order.
     diagram : Diagram
-        The diagram the plan runs: ``source`` itself, or its private copy.
+        The diagram the plan runs: ``source`` itself, or its private copy once
+        a later plan took over ``source``'s blocks.
     source : Diagram
         The diagram that was compiled.
     """
@@ -63,13 +65,12 @@ class CompiledDiagram:
     def __init__(self, diagram: Diagram, dt: float = 0.01) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise DiagramError(f"the base step dt must be a positive number of seconds, got {dt!r}")
-        self.source = diagram
+        for plan in running_plans(diagram):
+            plan._hand_over()  # the earlier plan continues on a copy; this one takes the blocks
+        self.source = self.diagram = diagram
         self._revision = diagram._revision
+        self._stale_reason: str | None = None
         self._lock = threading.Lock()
-        busy = running_plans(diagram)
-        # blocks that a current plan runs are copied, so that the two plans stay independent
-        self.diagram = private_copy(diagram, busy) if busy else diagram
-        diagram = self.diagram
         self.dt = float(dt)
         self.k = 0
         leaves: dict[str, Block] = {}
@@ -103,12 +104,35 @@ class CompiledDiagram:
         """False once the compiled diagram has changed: the plan then refuses to run; compile again."""
         return self.source._revision == self._revision
 
+    def _hand_over(self) -> None:
+        """Continue on a private copy of the blocks, state included: a new plan takes the diagram's blocks."""
+        if not self._lock.acquire(blocking=False):
+            raise SimulationError(
+                "cannot compile this diagram while an earlier plan of it is running (in another thread)"
+            )
+        try:
+            keep = (self, self._lock) if self.diagram is self.source else (self, self._lock, self.source)
+            moved = private_copy(dict(self.__dict__), self.diagram, keep)
+        except TypeError as exc:  # a block that cannot be copied: this plan ends here, and says why
+            self._revision = -1
+            self._stale_reason = (
+                f"a later compile of its diagram took over its blocks, and {exc}, so this plan could not "
+                "continue on a copy; use the later plan, or build one diagram per plan"
+            )
+        else:
+            moved["source"] = self.source
+            moved["_paths"] = {id(b): p for p, b in moved["blocks"].items()}
+            self.__dict__.update(moved)
+        finally:
+            self._lock.release()
+
     def _enter(self) -> None:
         """Take the plan for one step or run: refuse a stale plan and concurrent use."""
         if self.source._revision != self._revision:
             raise SimulationError(
-                "the diagram changed (a block added, replaced or rewired) after this plan was compiled, so the "
-                "plan no longer runs it; compile it again (diagram.compile() or a new Simulator)"
+                self._stale_reason
+                or "the diagram changed (a block added, replaced or rewired) after this plan was compiled, so "
+                "the plan no longer runs it; compile it again (diagram.compile() or a new Simulator)"
             )
         if not self._lock.acquire(blocking=False):
             raise SimulationError(

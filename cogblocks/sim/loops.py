@@ -183,14 +183,15 @@ class LinearLoop:
         self.blocks = blocks
         inside = {id(b) for b in blocks}
         slots: dict[int, slice] = {}
-        views: list[tuple[np.ndarray, slice]] = []
+        # (array, where) pairs, not views: a plan handed over to a copy deep-copies them, and views would detach
+        arrays: list[tuple[np.ndarray, slice]] = []
         n = 0
         for block in blocks:
             for port in block._outputs.values():
                 if port.value.dtype.kind != "f":
                     raise DiagramError(f"algebraic loop: {cycle}: {name(port)} is not a float signal")
                 slots[id(port)] = slice(n, n + port.value.size)
-                views.append((port.value.reshape(-1), slots[id(port)]))
+                arrays.append((port.value, slots[id(port)]))
                 n += port.value.size
         loop_gain = np.zeros((n, n))
         self._steps = []
@@ -210,7 +211,7 @@ class LinearLoop:
                     )
                 if inp in on_loop:
                     loop_gain[slots[id(out)], slots[id(drivers[inp])]] += d
-            own = [(port.value.reshape(-1), slots[id(port)]) for port in block._outputs.values()]
+            own = [(port.value, slots[id(port)]) for port in block._outputs.values()]
             self._steps.append(([inp.value for inp in on_loop], block.output, own))
         system = np.eye(n) - loop_gain
         condition = np.linalg.cond(system)
@@ -220,7 +221,7 @@ class LinearLoop:
                 f"{condition:.3g}): it has no unique solution; break it with a UnitDelay"
             )
         self._solve = np.linalg.inv(system)
-        self._views = views
+        self._arrays = arrays
         self._c = np.zeros(n)
 
     def output(self, k: int) -> None:
@@ -230,8 +231,8 @@ class LinearLoop:
             for arr in loop_inputs:
                 arr[...] = 0.0
             output(k)
-            for flat, where in own:
-                c[where] = flat
+            for arr, where in own:
+                c[where] = arr.ravel()
         y = self._solve @ c
-        for flat, where in self._views:
-            flat[...] = y[where]
+        for arr, where in self._arrays:
+            arr[...] = y[where].reshape(arr.shape)

@@ -1,11 +1,13 @@
-"""Which plan runs a diagram's blocks, and private copies of a diagram for the other plans.
+"""Which plan runs a diagram's blocks, and private copies for the plans that hand them over.
 
-The first plan compiled from a diagram runs the diagram's own block objects; a plan compiled
-while they are run by another plan that is still current works on a private copy. A copy
-duplicates what a run changes (blocks, ports, declared state) and shares what it only reads
-and what is costly or impossible to duplicate: torch modules and tensors, casadi objects, and
-NumPy arrays that are read-only all the way down (mark a large table read-only with
-``table.setflags(write=False)`` to have the copies share it).
+A diagram's own block objects are run by its latest plan. Compiling a diagram again moves the
+earlier plans that still run its blocks onto private deep copies, taken with their current
+state, so they continue exactly where they were and independently. A copy duplicates what a
+run changes (blocks, ports, declared and undeclared state) and shares what it only reads and
+what is costly or impossible to duplicate: torch modules and tensors, casadi objects, and NumPy
+arrays that are read-only all the way down (a read-only view of a writeable array can still
+change, so it is copied): mark a large table that owns its data read-only with
+``table.setflags(write=False)`` to have the copies share it.
 """
 
 from __future__ import annotations
@@ -34,36 +36,43 @@ def running_plans(diagram: Any) -> list[Any]:
     return [p for p in plans.values() if p.current]
 
 
-def private_copy(diagram: Any, plans: list[Any]) -> Any:
-    """Deep-copy ``diagram`` for a new plan, sharing read-only parameters.
+def private_copy(obj: Any, diagram: Any, keep: tuple[Any, ...] = ()) -> Any:
+    """Deep-copy ``obj`` (a plan's attributes), which holds ``diagram``, sharing read-only parameters.
 
     Parameters
     ----------
+    obj : object
+        What to copy.
     diagram : Diagram
-        The diagram to copy (it may sit inside a larger diagram; the copy does not).
-    plans : list of CompiledDiagram
-        Plans the blocks refer to; the copy refers to none of them.
+        The diagram ``obj`` runs (it may sit inside a larger diagram; the copy does not).
+    keep : tuple
+        Objects the copy refers to as they are (the plan itself, its lock).
+
+    Raises
+    ------
+    TypeError
+        Naming the block that cannot be deep-copied.
     """
-    memo: dict[int, Any] = {id(p): None for p in plans}
+    memo: dict[int, Any] = {}
     parent = getattr(diagram, "_parent", None)
     if parent is not None:
         memo[id(parent)] = None
     seen: set[int] = set()
     for node in _nodes(diagram):
-        compiled = node.__dict__.get("_compiled")
-        if compiled is not None:
-            memo[id(compiled)] = None
+        for attribute in ("_compiled", "_plan"):  # other plans are not copied along
+            plan = node.__dict__.get(attribute)
+            if plan is not None:
+                memo[id(plan)] = None
         for value in node.__dict__.values():
             _find_shared(value, memo, seen, _SEARCH_DEPTH)
+    for obj_kept in keep:
+        memo[id(obj_kept)] = obj_kept
     try:
-        return copy.deepcopy(diagram, dict(memo))  # deepcopy fills its memo: keep ours for the search below
+        return copy.deepcopy(obj, dict(memo))  # deepcopy fills its memo: keep ours for the search below
     except Exception as exc:  # name the block that holds what cannot be copied
         culprit = next((b for b in leaf_blocks(diagram) if not _copyable(b, memo)), None)
         where = f"block {culprit.name!r} ({type(culprit).__name__})" if culprit is not None else "the diagram"
-        raise TypeError(
-            f"{where} cannot be copied ({exc}), so this diagram cannot have a second plan while "
-            "its first one is current; build a second diagram instead"
-        ) from exc
+        raise TypeError(f"{where} cannot be copied ({exc})") from exc
 
 
 def _copyable(block: Any, memo: dict[int, Any]) -> bool:

@@ -67,13 +67,11 @@ class Simulator:
         self.progress = progress
         self._probes = self._resolve_probes(probes)
 
-    def _resolve_probes(self, probes) -> dict[str, tuple[np.ndarray, str]]:
+    def _resolve_probes(self, probes) -> dict[str, str | None]:
+        """Probe names mapped to output paths, or to None for a ``Probe`` block (recorded at its input)."""
         from cogblocks.blocks.core import Probe
 
-        found: dict[str, tuple[np.ndarray, str]] = {}
-        for path, block in self.compiled.blocks.items():
-            if isinstance(block, Probe):
-                found[path] = (block.u.value, block.u.spec.unit or "")
+        found: dict[str, str | None] = {path: None for path, b in self.compiled.blocks.items() if isinstance(b, Probe)}
         if probes is None:
             return found
         pairs = probes.items() if isinstance(probes, Mapping) else ((p, p) for p in probes)
@@ -81,11 +79,20 @@ class Simulator:
             if name in found:
                 raise DiagramError(f"probe name {name!r} is used twice")
             try:
-                port = self.compiled.output_port(path)
+                self.compiled.output_port(path)
             except KeyError as exc:
                 raise DiagramError(str(exc.args[0])) from None
-            found[name] = (port.value, port.spec.unit or "")
+            found[name] = path
         return found
+
+    def _probe_arrays(self) -> dict[str, tuple[np.ndarray, str]]:
+        """The recorded arrays and their units, looked up for each run (a plan may have moved to a copy)."""
+        compiled = self.compiled
+        ports = {
+            name: compiled.blocks[name].u if path is None else compiled.output_port(path)
+            for name, path in self._probes.items()
+        }
+        return {name: (port.value, port.spec.unit or "") for name, port in ports.items()}
 
     @property
     def dt(self) -> float:
@@ -160,8 +167,9 @@ class Simulator:
         k0 = compiled.k
         feed = self._feeder(inputs or {}, k0, n)
         n_rec = (n + self.decimate - 1) // self.decimate
-        buffers = {name: np.empty((n_rec,) + arr.shape, dtype=arr.dtype) for name, (arr, _) in self._probes.items()}
-        record = self._recorder(buffers, k0)
+        probes = self._probe_arrays()
+        buffers = {name: np.empty((n_rec,) + arr.shape, dtype=arr.dtype) for name, (arr, _) in probes.items()}
+        record = self._recorder(buffers, probes, k0)
         show = self.progress
         if show is None:
             show = n >= _PROGRESS_MIN_STEPS and sys.stderr.isatty() and not os.environ.get("CI")
@@ -179,7 +187,7 @@ class Simulator:
         else:
             compiled.advance(n, record, feed)
         t = (k0 + np.arange(n_rec) * self.decimate) * compiled.dt
-        return Trace(t, buffers, {name: unit for name, (_, unit) in self._probes.items()})
+        return Trace(t, buffers, {name: unit for name, (_, unit) in probes.items()})
 
     def _n_steps(self, duration: float | None, n_steps: int | None) -> int:
         if (duration is None) == (n_steps is None):
@@ -241,8 +249,10 @@ class Simulator:
 
         return feed
 
-    def _recorder(self, buffers: dict[str, np.ndarray], k0: int) -> Callable[[int], None] | None:
-        pairs = [(buffers[name], arr) for name, (arr, _) in self._probes.items()]
+    def _recorder(
+        self, buffers: dict[str, np.ndarray], probes: dict[str, tuple[np.ndarray, str]], k0: int
+    ) -> Callable[[int], None] | None:
+        pairs = [(buffers[name], arr) for name, (arr, _) in probes.items()]
         if not pairs:
             return None
         d = self.decimate

@@ -55,19 +55,20 @@ def test_two_simulators_of_one_diagram_are_independent():
     assert a.compiled.k == 300 and b.compiled.k == 200
 
 
-def test_first_plan_runs_the_diagram_blocks_later_plans_run_copies():
+def test_the_latest_plan_runs_the_diagram_blocks_earlier_plans_continue_on_copies():
     d = _counter_loop()
     x = d["x"]
     a = Simulator(d)
-    b = Simulator(d, dt=0.5)
     a.run(n_steps=10)
+    b = Simulator(d, dt=0.5)
+    assert b.compiled.blocks["x"] is x and a.compiled.blocks["x"] is not x
+    assert float(a.compiled.blocks["x"].x) == pytest.approx(10 * 0.01)  # a kept its state
+    np.testing.assert_allclose(a.run(n_steps=3)["p"], [0.10, 0.11, 0.12])  # and continues from it
     b.run(n_steps=3)
-    assert a.compiled.blocks["x"] is x and b.compiled.blocks["x"] is not x
-    assert float(x.x) == pytest.approx(10 * 0.01)  # the block you hold shows the first plan's run
-    assert float(b.compiled.blocks["x"].x) == pytest.approx(3 * 0.5)
+    assert float(x.x) == pytest.approx(3 * 0.5)  # the block you hold shows the latest plan's run
     assert d.compiled is b.compiled  # the last compile, as d.step() uses
     d.step()
-    assert b.compiled.k == 4 and a.compiled.k == 10
+    assert b.compiled.k == 4 and a.compiled.k == 13 and float(x.x) == pytest.approx(4 * 0.5)
 
 
 def test_copies_share_networks_and_read_only_tables_not_state():
@@ -94,16 +95,19 @@ def test_copies_share_networks_and_read_only_tables_not_state():
 
     d = Diagram()
     block = d.add("look", Lookup())
-    a, b = Simulator(d), Simulator(d)
-    copy = b.compiled.blocks["look"]
+    a = Simulator(d)
+    a.run(n_steps=2)
+    b = Simulator(d)
+    copy = a.compiled.blocks["look"]
+    assert b.compiled.blocks["look"] is block and float(copy.count) == 2
     assert copy.net is block.net and copy.table is block.table
     assert copy.scratch is not block.scratch and copy.count is not block.count
     assert copy.view is not block.view
-    a.run(n_steps=4)
-    assert float(block.count) == 4 and float(copy.count) == 0
+    b.run(n_steps=4)
+    assert float(block.count) == 4 and float(copy.count) == 2
 
 
-def test_a_block_that_cannot_be_copied_is_named_on_a_second_plan():
+def test_an_earlier_plan_whose_blocks_cannot_be_copied_ends_and_names_the_block():
     class Locked(Block):
         """Holds a lock. Bad data policy: none (test block)."""
 
@@ -114,9 +118,12 @@ def test_a_block_that_cannot_be_copied_is_named_on_a_second_plan():
 
     d = Diagram()
     d.add("locked", Locked())
-    Simulator(d).run(n_steps=2)
-    with pytest.raises(TypeError, match=r"block 'locked' \(Locked\) cannot be copied .* build a second diagram"):
-        Simulator(d)
+    first = Simulator(d)
+    first.run(n_steps=2)
+    second = Simulator(d)
+    assert second.run(n_steps=3).t.tolist() == [0.0, 0.01, 0.02]
+    with pytest.raises(SimulationError, match=r"took over its blocks, and block 'locked' \(Locked\) cannot be copied"):
+        first.run(n_steps=1)
 
 
 def test_replace_makes_earlier_plans_refuse_to_run():
