@@ -264,10 +264,11 @@ class Diagram(Block):
     def compile(self, dt: float = 0.01) -> CompiledDiagram:
         """Validate, flatten and order the diagram into a runnable plan.
 
-        The first plan runs this diagram's own blocks (the block objects you hold
-        show its state); a plan compiled while that one is current runs a private
-        copy, so plans of one diagram are independent. Changing the diagram makes
-        its earlier plans stale: they refuse to run.
+        The new plan runs this diagram's own blocks (the block objects you hold
+        show its state, and it becomes :attr:`compiled`); earlier plans of the
+        diagram continue on private copies of their blocks, with their state, so
+        plans of one diagram are independent. Changing the diagram makes its
+        plans stale: they refuse to run.
 
         Parameters
         ----------

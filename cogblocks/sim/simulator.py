@@ -42,8 +42,9 @@ class Simulator:
     -----
     Successive :meth:`run` calls continue from where the previous one stopped;
     call :meth:`reset` to start again from tick 0. Two simulators of one diagram
-    are independent (the second runs a private copy of the blocks, see
-    :meth:`Diagram.compile`); one simulator is run from one thread at a time.
+    are independent (the newer runs the diagram's blocks, the older continues
+    on a copy; see :meth:`Diagram.compile`); run one simulator from one thread
+    at a time.
     """
 
     def __init__(
