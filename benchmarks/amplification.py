@@ -1,8 +1,8 @@
 """PoP of Amplification benchmark: the library search of the online projector, per decision.
 
 Every ΔT = 10 samples the projector compares the buffered prefix of the human movement with every
-library movement. The incremental projector (:class:`~cogblocks.blocks.encoding.PrefixProjection`,
-what :class:`~cogblocks.blocks.encoding.LibraryProjector` runs in its update) only adds the 10 new
+library movement. The incremental projector (:class:`~cogblocks.amplification.projector.PrefixProjection`,
+what :class:`~cogblocks.amplification.LibraryProjector` runs in its update) only adds the 10 new
 samples to running sums; the reference, measured in the same run, re-projects the whole prefix at
 every decision. Libraries: the generated one (458 movements) and synthetic ones of 10 000 and
 100 000 movements made by drawing movements of it with replacement and jittering them (amplitude
@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from cogblocks.blocks.encoding import PrefixProjection
+from cogblocks.amplification.projector import PrefixProjection
 from cogblocks.data.reach import generate_reach_library
 
 INTERVAL = 10
@@ -79,8 +79,9 @@ def _peak_mb(fn: Callable[[], object]) -> float:
         tracemalloc.stop()
 
 
-def _measure(size: int, velocity: np.ndarray, fear: np.ndarray, humans: np.ndarray, dtypes: tuple[str, ...]
-             ) -> Iterator[dict]:
+def _measure(
+    size: int, velocity: np.ndarray, fear: np.ndarray, humans: np.ndarray, dtypes: tuple[str, ...]
+) -> Iterator[dict]:
     slow = [t for h in humans for t in naive_decisions(velocity, fear, h)]
     naive_memory = _peak_mb(lambda: naive_decisions(velocity, fear, humans[0]))
     for dtype in dtypes:
@@ -90,11 +91,27 @@ def _measure(size: int, velocity: np.ndarray, fear: np.ndarray, humans: np.ndarr
         label = f"amplification.search.{size}" + ("" if dtype == "float32" else f".{dtype}")
         for q in (50, 99):
             value, reference = np.percentile(fast, q) * 1e3, np.percentile(slow, q) * 1e3
-            yield {"name": f"{label}.p{q}", "value": value, "unit": "ms", "reference": reference,
-                   "ratio": value / reference, "library": size, "decisions": len(fast), "dtype": dtype}
+            yield {
+                "name": f"{label}.p{q}",
+                "value": value,
+                "unit": "ms",
+                "reference": reference,
+                "ratio": value / reference,
+                "library": size,
+                "decisions": len(fast),
+                "dtype": dtype,
+            }
         memory = _peak_mb(lambda d=dtype: incremental_decisions(PrefixProjection(velocity, dtype=d), fear, humans[0]))
-        yield {"name": f"{label}.peak_memory", "value": memory, "unit": "MiB", "reference": naive_memory,
-               "ratio": memory / naive_memory, "library": size, "library_mib": velocity.nbytes / 2**20, "dtype": dtype}
+        yield {
+            "name": f"{label}.peak_memory",
+            "value": memory,
+            "unit": "MiB",
+            "reference": naive_memory,
+            "ratio": memory / naive_memory,
+            "library": size,
+            "library_mib": velocity.nbytes / 2**20,
+            "dtype": dtype,
+        }
 
 
 def run(quick: bool = False) -> Iterator[dict]:
@@ -105,10 +122,13 @@ def run(quick: bool = False) -> Iterator[dict]:
     """
     base = generate_reach_library(0)
     humans = generate_reach_library(1, n_subjects=2, n_fear=0, n_no_fear=6).velocity
-    yield from _measure(len(base), base.velocity.astype(np.float32), base.fear, humans[: 2 if quick else 6],
-                        ("float32",))
-    yield from _measure(10_000, *synthetic_library(base.velocity, base.fear, 10_000), humans[: 2 if quick else 6],
-                        ("float32",))
+    yield from _measure(
+        len(base), base.velocity.astype(np.float32), base.fear, humans[: 2 if quick else 6], ("float32",)
+    )
+    yield from _measure(
+        10_000, *synthetic_library(base.velocity, base.fear, 10_000), humans[: 2 if quick else 6], ("float32",)
+    )
     if not quick:
-        yield from _measure(100_000, *synthetic_library(base.velocity, base.fear, 100_000), humans[:3],
-                            ("float32", "float64"))
+        yield from _measure(
+            100_000, *synthetic_library(base.velocity, base.fear, 100_000), humans[:3], ("float32", "float64")
+        )

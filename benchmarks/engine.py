@@ -12,8 +12,9 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from cogblocks.blocks import KuramotoGroup, KuramotoOscillator, Mux, OrderParameter, Probe, ring_adjacency
+from cogblocks.blocks import Mux, Probe
 from cogblocks.sim import Diagram, Simulator
+from cogblocks.sync import KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
 
 OMEGA = np.array([2.7151, 2.9299, 4.0344, 2.1476, 3.9117, 3.7429, 3.2827])
 GAIN = 4.4 / 7

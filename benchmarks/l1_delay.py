@@ -26,8 +26,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from cogblocks.blocks import Playback
-from cogblocks.blocks.estimation import KalmanEstimator
-from cogblocks.blocks.l1 import L1
+from cogblocks.sensing import L1, KalmanEstimator
 from cogblocks.sim import Diagram, Simulator
 
 DT = 0.01
@@ -49,13 +48,13 @@ def corrupt(noisy: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     n = len(noisy)
     z = noisy.copy()
     for start in rng.choice(np.arange(200, n - 50), size=3, replace=False):
-        z[start:start + 20] = z[start - 1]
+        z[start : start + 20] = z[start - 1]
     for i in rng.choice(np.arange(200, n), size=10, replace=False):
         axis = rng.integers(noisy.shape[1])
         z[i, axis] += rng.choice([-1.0, 1.0]) * rng.uniform(40.0, 100.0)
     z[rng.random(n) < 0.02] = np.nan
     for start in rng.choice(np.arange(200, n - 50), size=3, replace=False):
-        z[start:start + 15] = np.nan
+        z[start : start + 15] = np.nan
     return z
 
 

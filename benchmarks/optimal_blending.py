@@ -3,10 +3,10 @@
     python benchmarks/optimal_blending.py [--quick]
 
 Held-out no-fear movements of the shipped encoder's split are replayed through the architecture
-in the same run: with the table-lookup :class:`~cogblocks.blocks.encoding.VelocityBlender` (the
-reference), with :class:`~cogblocks.analysis.optimal_blending.OptimalBlender` (one casadi solve per
+in the same run: with the table-lookup :class:`~cogblocks.amplification.VelocityBlender` (the
+reference), with :class:`~cogblocks.amplification.OptimalBlender` (one casadi solve per
 decision, 8 ms limit; sqpmethod, and IPOPT in the full run) and with the table lookup plus the
-:class:`~cogblocks.blocks.rl.RLCorrector`. A blender's decision is its output on a tick where the
+:class:`~cogblocks.amplification.RLCorrector`. A blender's decision is its output on a tick where the
 projector's decision count changes: for the table, looking ``c`` up and blending; for the
 optimiser, building the problem, solving it and checking the result (decisions after the planned
 movement has ended, with nothing to solve, are left out). The corrector's decision is its update on
@@ -28,8 +28,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 import torch
 
-from cogblocks.analysis.optimal_blending import OptimalBlender
-from cogblocks.blocks.rl import RLCorrector, load_corrector
+from cogblocks.amplification import OptimalBlender, RLCorrector, load_corrector
 from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
 from cogblocks.sim import Block, Simulator
 

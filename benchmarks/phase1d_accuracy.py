@@ -4,11 +4,11 @@ For ``n`` seeded 60 s signals from :func:`cogblocks.data.oscillation.generate_os
 (0.4-1.2 Hz, 100-300 mm, drifting; 1 mm noise; mild harmonics), in three data sets (``clean``:
 no bad data; ``dropouts``: 4 frozen stretches of 0.1-0.5 s a minute on average;
 ``dropouts_nan``: the same and 1 % missing samples), run the module
-:class:`cogblocks.blocks.phase.PhaseEstimator` and measure the circular error
+:class:`cogblocks.phase.PhaseEstimator` and measure the circular error
 ``|wrap_pi(θ_online − θ_ref)|`` against
 
 * ``hilbert``: the offline Hilbert phase of the drop-out-free signal
-  (:func:`cogblocks.blocks.phase.hilbert_phase`, centred by a zero-phase 0.2 Hz high-pass);
+  (:func:`cogblocks.phase.hilbert_phase`, centred by a zero-phase 0.2 Hz high-pass);
 * ``true``: the phase of the underlying oscillator.
 
 The first and the last 5 s of every signal are left out: the start-up (the first period, at
@@ -39,8 +39,8 @@ from typing import Any
 import numpy as np
 
 from cogblocks.blocks.angles import wrap_pi
-from cogblocks.blocks.phase import Algorithm1Phase, PhaseEstimator, hilbert_phase
 from cogblocks.data.oscillation import Oscillation, generate_oscillation
+from cogblocks.phase import Algorithm1Phase, PhaseEstimator, hilbert_phase
 from cogblocks.sim import Simulator
 
 DT = 0.01
@@ -149,10 +149,20 @@ def _front_end_records(
             low = round(float(f(lowpass[ref])), 4)
             kal = round(float(f(kalman[ref])), 4)
             base = {"unit": "rad", **context}
-            yield {"name": f"phase1d.front_end.lowpass.{tag}.vs_{ref}.{stat}", "value": low,
-                   "reference": None, "ratio": None, **base}
-            yield {"name": f"phase1d.front_end.kalman.{tag}.vs_{ref}.{stat}", "value": kal,
-                   "reference": low, "ratio": round(kal / low, 3) if low > 0 else None, **base}
+            yield {
+                "name": f"phase1d.front_end.lowpass.{tag}.vs_{ref}.{stat}",
+                "value": low,
+                "reference": None,
+                "ratio": None,
+                **base,
+            }
+            yield {
+                "name": f"phase1d.front_end.kalman.{tag}.vs_{ref}.{stat}",
+                "value": kal,
+                "reference": low,
+                "ratio": round(kal / low, 3) if low > 0 else None,
+                **base,
+            }
 
 
 def run(quick: bool = False, sweep: bool = False) -> Iterator[dict[str, Any]]:
@@ -168,8 +178,12 @@ def run(quick: bool = False, sweep: bool = False) -> Iterator[dict[str, Any]]:
         if tag == "clean":
             hvt = errs["hilbert_vs_true"]
             yield {
-                "name": "phase1d.hilbert_vs_true.mean", "value": round(float(hvt.mean()), 4), "unit": "rad",
-                "reference": None, "ratio": None, **context,
+                "name": "phase1d.hilbert_vs_true.mean",
+                "value": round(float(hvt.mean()), 4),
+                "unit": "rad",
+                "reference": None,
+                "ratio": None,
+                **context,
             }
         if tag in FRONT_END_SETS:
             yield from _front_end_records(tag, errs, errors(oscs, front_end="kalman"), **context)

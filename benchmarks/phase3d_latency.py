@@ -27,8 +27,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from cogblocks.blocks.phase3d import PhaseEstimator3D
 from cogblocks.data.motion3d import generate_motion3d
+from cogblocks.phase import PhaseEstimator3D
 
 SIZES = (200, 2000, 20000)
 PERIOD_S = 2.0
@@ -39,7 +39,13 @@ def _tick_latencies(n_reference: int, search: str, n_measured: int) -> np.ndarra
     dt = PERIOD_S / n_reference
     duration = (1.4 * n_reference + n_measured) * dt  # the first period (with its drift) and the measured ticks
     motion = generate_motion3d(
-        0, duration=duration, dt=dt, period=PERIOD_S, period_spread=0.0, noise_mm=0.0, dropout_rate=0.0,
+        0,
+        duration=duration,
+        dt=dt,
+        period=PERIOD_S,
+        period_spread=0.0,
+        noise_mm=0.0,
+        dropout_rate=0.0,
         n_reference=n_reference,
     )
     estimator = PhaseEstimator3D(motion.reference, capacity=2 * n_reference, search=search)

@@ -15,8 +15,9 @@ from collections.abc import Iterator
 import numpy as np
 
 from cogblocks.data.groups import TABLE2
-from cogblocks.diagrams.sync import MOTIONS, L2Sync, pop_sync
+from cogblocks.diagrams.sync import MOTIONS, pop_sync
 from cogblocks.sim import Simulator
+from cogblocks.sync import L2Sync
 
 BUDGET_MS = 10.0
 
@@ -31,7 +32,7 @@ def _speed(diagram, n_steps: int) -> float:
 def run(quick: bool = False) -> Iterator[dict]:
     """Yield the closed-loop speed and L2 latency for every motion computer."""
     group = TABLE2[3]
-    n_steps = (3001 if quick else 30001)
+    n_steps = 3001 if quick else 30001
     baseline = _speed(pop_sync(group, l2=False), n_steps)
     for policy in MOTIONS:
         speed = _speed(pop_sync(group, l2=True, motion=policy), n_steps)

@@ -2,6 +2,6 @@
 
 from cogblocks.sim import Block, Diagram, DiagramError, Signal, Simulator, Trace
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = ["Block", "Diagram", "DiagramError", "Signal", "Simulator", "Trace", "__version__"]

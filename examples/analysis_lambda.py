@@ -11,9 +11,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from cogblocks.analysis.stability import check_blender, lambda_report  # noqa: E402
-from cogblocks.blocks import Blender, Playback  # noqa: E402
+from cogblocks.blocks import Playback
 from cogblocks.sim import Diagram, Simulator  # noqa: E402
+from cogblocks.sync import Blender, check_blender, lambda_report
 
 DT = 0.01
 N_FAR, N_BACK = 400, 600  # reference far away for 4 s, then back on θ_L0 for 6 s

@@ -11,10 +11,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from cogblocks.analysis.linearize import kuramoto_linearization, linearize  # noqa: E402
-from cogblocks.blocks import KuramotoGroup  # noqa: E402
+from cogblocks.analysis import kuramoto_linearization, linearize
 from cogblocks.data.groups import TABLE2  # noqa: E402
 from cogblocks.sim import Diagram  # noqa: E402
+from cogblocks.sync import KuramotoGroup
 
 for gid, group in TABLE2.items():
     print(f"Group {gid} (gain {group.gain:.4g}): {kuramoto_linearization(group.omega, group.gain).message}")

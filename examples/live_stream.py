@@ -13,8 +13,9 @@ import time
 
 import numpy as np
 
-from cogblocks.blocks import L1, KalmanEstimator, PhaseEstimator
 from cogblocks.data.oscillation import generate_oscillation
+from cogblocks.phase import PhaseEstimator
+from cogblocks.sensing import L1, KalmanEstimator
 from cogblocks.sim import Diagram
 
 DT = 0.01  # 100 Hz
@@ -63,8 +64,12 @@ for k in range(n_warm, n_warm + n_live):
 
 raw = stream[n_warm - DELAY_TICKS : n_warm + n_live - DELAY_TICKS] - motion.clean[n_warm : n_warm + n_live]
 ms = 1e3 * np.array(compute)
-print(f"{n_live} ticks at 100 Hz: compute p50 {np.median(ms):.2f} ms, p99 {np.percentile(ms, 99):.2f} ms, "
-      f"{late} tick(s) past the deadline")
-print(f"avatar RMS error to the current position: {np.sqrt(np.mean(np.square(errors))):.1f} mm "
-      f"(the raw delayed stream: {np.sqrt(np.nanmean(np.square(raw))):.1f} mm, ignoring its NaN)")
+print(
+    f"{n_live} ticks at 100 Hz: compute p50 {np.median(ms):.2f} ms, p99 {np.percentile(ms, 99):.2f} ms, "
+    f"{late} tick(s) past the deadline"
+)
+print(
+    f"avatar RMS error to the current position: {np.sqrt(np.mean(np.square(errors))):.1f} mm "
+    f"(the raw delayed stream: {np.sqrt(np.nanmean(np.square(raw))):.1f} mm, ignoring its NaN)"
+)
 print(f"phase error to the true phase of the delayed sample: mean {np.mean(np.abs(phase_errors)):.3f} rad")

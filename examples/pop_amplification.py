@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from cogblocks.blocks.rl import RLCorrector
+from cogblocks.amplification import RLCorrector
 from cogblocks.diagrams.amplification import amplification_setup, plot_amplification, pop_amplification
 from cogblocks.sim import Simulator
 
@@ -15,14 +15,18 @@ print(f"library of {len(setup.movements)} movements, {len(setup.humans)} held-ou
 d = pop_amplification(movement, setup.movements, table=setup.table, encoder=setup.encoder)
 probes = {"decision": "encoder.decision", "reference": "l2.reference"}
 trace = Simulator(d, probes=probes).run(n_steps=setup.library.max_len)
-print(f"movement {human}: reference {int(trace['reference'][-1])}, c from {trace['c'][10]:.2f} to "
-      f"{trace['c'][-1]:.2f}, final ε̂ {trace['eps'][-1]:.2f} (decision {int(trace['decision'][-1])}), "
-      f"final distance {np.linalg.norm(trace['p_a'][-1] - trace['p_h'][-1]):.1f} mm")
+print(
+    f"movement {human}: reference {int(trace['reference'][-1])}, c from {trace['c'][10]:.2f} to "
+    f"{trace['c'][-1]:.2f}, final ε̂ {trace['eps'][-1]:.2f} (decision {int(trace['decision'][-1])}), "
+    f"final distance {np.linalg.norm(trace['p_a'][-1] - trace['p_h'][-1]):.1f} mm"
+)
 
 # the corrector is one swappable block of the architecture
 d.replace("l2.corrector", RLCorrector())
 trace = Simulator(d, probes=probes).run(n_steps=setup.library.max_len)
-print(f"with the RL corrector: final ε̂ {trace['eps'][-1]:.2f}, "
-      f"final distance {np.linalg.norm(trace['p_a'][-1] - trace['p_h'][-1]):.1f} mm")
+print(
+    f"with the RL corrector: final ε̂ {trace['eps'][-1]:.2f}, "
+    f"final distance {np.linalg.norm(trace['p_a'][-1] - trace['p_h'][-1]):.1f} mm"
+)
 
 plot_amplification("pop_amplification_fig6.png")

@@ -1,8 +1,8 @@
 """PoP of Social Connectedness: Table 3 and Figures 9-10 for Group 1, then a swapped blender."""
 
-from cogblocks.blocks import Blender
 from cogblocks.diagrams.sync import plot_sync, pop_sync, run_sync
 from cogblocks.sim import Simulator
+from cogblocks.sync import Blender
 
 result = run_sync(1)
 print(f"Group 1 without L2: {result['r_without']:.3f}")

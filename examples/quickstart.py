@@ -1,7 +1,8 @@
 """The README example: a Kuramoto group and its order parameter, with a live loop and a snapshot."""
 
-from cogblocks.blocks import KuramotoGroup, OrderParameter, Probe
+from cogblocks.blocks import Probe
 from cogblocks.sim import Diagram, Simulator
+from cogblocks.sync import KuramotoGroup, OrderParameter
 
 d = Diagram()
 group = d.add("group", KuramotoGroup(omega=[2.72, 2.93, 4.03, 2.15, 3.91, 3.74, 3.28], gain=4.4 / 7))

@@ -1,22 +1,18 @@
-"""Analysis tools: λ stability of the blender, linearisation of diagrams, optimisation-based blending.
+"""Offline analysis: linearisation of diagrams and of Kuramoto groups about their locked state.
 
-Names are imported on first use: python-control, casadi and torch load slowly, and the
-blender's compile-time stability check imports this package.
+Names are imported on first use: python-control loads slowly. The blender's λ stability check
+lives beside the blender (:mod:`cogblocks.sync.stability`) and the optimisation-based blender in
+:mod:`cogblocks.amplification.optimal`.
 """
 
 import importlib
 from typing import Any
 
 _LAZY = {
-    "KuramotoLinearization": "cogblocks.analysis.linearize",
-    "kuramoto_jacobian": "cogblocks.analysis.linearize",
-    "kuramoto_linearization": "cogblocks.analysis.linearize",
-    "linearize": "cogblocks.analysis.linearize",
-    "LambdaReport": "cogblocks.analysis.stability",
-    "check_blender": "cogblocks.analysis.stability",
-    "lambda_report": "cogblocks.analysis.stability",
-    "OptimalBlender": "cogblocks.analysis.optimal_blending",
-    "encoder_to_casadi": "cogblocks.analysis.optimal_blending",
+    "KuramotoLinearization": "cogblocks.analysis.kuramoto",
+    "kuramoto_jacobian": "cogblocks.analysis.kuramoto",
+    "kuramoto_linearization": "cogblocks.analysis.kuramoto",
+    "linearize": "cogblocks.analysis.linearization",
 }
 
 __all__ = sorted(_LAZY)

@@ -1,97 +1,87 @@
-"""The block library."""
+"""General blocks, grouped by kind as in a Simulink or bdsim library.
 
-import importlib
+- :mod:`~cogblocks.blocks.sources`: ``Constant``, ``Playback``
+- :mod:`~cogblocks.blocks.functions`: ``Gain``, ``Sum``, ``Saturation``, ``Function``
+- :mod:`~cogblocks.blocks.discrete`: ``UnitDelay``, ``Integrator``, ``BackwardDifference``, ``LowPass``,
+  ``DiscreteLTI``
+- :mod:`~cogblocks.blocks.routing`: ``Mux``, ``Demux``, ``Select``, ``Substitute``
+- sinks: ``Probe`` (defined by the engine, which records it)
+
+The blocks of the deliverable's architectures live in their own packages: :mod:`cogblocks.sync`,
+:mod:`cogblocks.amplification`, :mod:`cogblocks.phase` and :mod:`cogblocks.sensing`.
+"""
+
 from typing import Any
 
-from cogblocks.blocks.blend import Blender
-from cogblocks.blocks.buffer import Buffer
-from cogblocks.blocks.core import (
-    Constant,
-    Demux,
-    DiscreteLTI,
-    Function,
-    Gain,
-    Integrator,
-    LowPass,
-    Mux,
-    Playback,
-    Probe,
-    Saturation,
-    Select,
-    Substitute,
-    Sum,
-    UnitDelay,
-)
-from cogblocks.blocks.estimation import KalmanEstimator, fit_noise
-from cogblocks.blocks.group import ArmPositions, KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
-from cogblocks.blocks.l1 import L1, KinematicPredictor
-from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
-from cogblocks.blocks.phase import Algorithm1Phase, PhaseEstimator, hilbert_phase
-from cogblocks.blocks.phase3d import (
-    BackwardDifference,
-    PeriodEstimator,
-    PhaseComputer,
-    PhaseEstimator3D,
-    PositionComputer,
-    ReferenceCustomizer,
-)
+from cogblocks.blocks.discrete import BackwardDifference, DiscreteLTI, Integrator, LowPass, UnitDelay
+from cogblocks.blocks.functions import Function, Gain, Saturation, Sum
+from cogblocks.blocks.routing import Demux, Mux, Select, Substitute
+from cogblocks.blocks.sources import Constant, Playback
+from cogblocks.sim.probe import Probe
 
 __all__ = [
-    "Algorithm1Phase",
-    "ArmPositions",
     "BackwardDifference",
-    "Blender",
-    "Buffer",
     "Constant",
     "Demux",
     "DiscreteLTI",
-    "EncoderClassifier",
     "Function",
     "Gain",
     "Integrator",
-    "KalmanEstimator",
-    "KinematicPredictor",
-    "KuramotoGroup",
-    "KuramotoOscillator",
-    "L1",
-    "LibraryProjector",
     "LowPass",
-    "MeanPhaseMotion",
-    "MotionComputer",
     "Mux",
-    "NoCorrection",
-    "OrderParameter",
-    "PeriodEstimator",
-    "PhaseComputer",
-    "PhaseEstimator",
-    "PhaseEstimator3D",
     "Playback",
-    "PositionComputer",
     "Probe",
-    "RLCorrector",
-    "ReferenceCustomizer",
     "Saturation",
     "Select",
     "Substitute",
     "Sum",
     "UnitDelay",
-    "VelocityBlender",
-    "fit_noise",
-    "hilbert_phase",
-    "ring_adjacency",
 ]
 
-# Blocks built on torch are imported on first use, so that the rest of the library loads fast.
-_LAZY = {
-    "EncoderClassifier": "cogblocks.blocks.encoding",
-    "LibraryProjector": "cogblocks.blocks.encoding",
-    "VelocityBlender": "cogblocks.blocks.encoding",
-    "NoCorrection": "cogblocks.blocks.rl",
-    "RLCorrector": "cogblocks.blocks.rl",
+# Where the architecture blocks went in 0.2, so that an old import says where to look instead
+# of a bare AttributeError. Plain strings: nothing is imported from the higher layers.
+_MOVED = {
+    **dict.fromkeys(
+        (
+            "KuramotoGroup",
+            "KuramotoOscillator",
+            "OrderParameter",
+            "ArmPositions",
+            "ring_adjacency",
+            "Blender",
+            "MotionComputer",
+            "MeanPhaseMotion",
+        ),
+        "cogblocks.sync",
+    ),
+    **dict.fromkeys(
+        ("Buffer", "EncoderClassifier", "LibraryProjector", "VelocityBlender", "RLCorrector", "NoCorrection"),
+        "cogblocks.amplification",
+    ),
+    **dict.fromkeys(
+        (
+            "Algorithm1Phase",
+            "PhaseEstimator",
+            "PhaseEstimator3D",
+            "PeriodEstimator",
+            "ReferenceCustomizer",
+            "PhaseComputer",
+            "hilbert_phase",
+        ),
+        "cogblocks.phase",
+    ),
+    **dict.fromkeys(("KalmanEstimator", "fit_noise", "KinematicPredictor", "L1"), "cogblocks.sensing"),
 }
 
 
 def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
+    if name == "PositionComputer":
+        raise AttributeError(
+            "cogblocks.blocks.PositionComputer was split in 0.2: use cogblocks.phase.PhasePositionComputer "
+            "(phase → position, section 6) or cogblocks.amplification.VelocityPositionComputer (integration)"
+        )
+    if name in _MOVED:
+        raise AttributeError(
+            f"{name} moved to {_MOVED[name]} in 0.2: use 'from {_MOVED[name]} import {name}' (see docs/architecture.md)"
+        )
     raise AttributeError(f"module 'cogblocks.blocks' has no attribute {name!r}")

@@ -2,10 +2,9 @@
 
 :class:`L2Amplification` is the online architecture as one block: a :class:`Buffer` of the human
 movement, the :class:`LibraryProjector`, the blending rule, a corrector and the
-:class:`~cogblocks.blocks.encoding.PositionComputer`. :func:`pop_amplification` replays one movement
+:class:`~cogblocks.amplification.VelocityPositionComputer`. :func:`pop_amplification` replays one movement
 through it and classifies the altered movement online; :func:`run_amplification` gives the paper's
-validation figures on the held-out no-fear movements of the synthetic library.
-"""
+validation figures on the held-out no-fear movements of the synthetic library."""
 
 from __future__ import annotations
 
@@ -17,31 +16,29 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.blocks.buffer import Buffer
-from cogblocks.blocks.core import Playback, Probe
-from cogblocks.blocks.encoding import (
-    BLENDING_INPUTS,
-    BLENDING_OUTPUTS,
+from cogblocks.amplification import (
+    Buffer,
+    CorrectorNet,
     EncoderClassifier,
     EncoderNet,
-    LibraryProjector,
-    PositionComputer,
+    NoCorrection,
+    RLCorrector,
     SolutionTable,
-    VelocityBlender,
-    library_fingerprint,
+    load_corrector,
     load_encoder,
     solution_table,
 )
-from cogblocks.blocks.estimation import KalmanEstimator
-from cogblocks.blocks.rl import CorrectorNet, NoCorrection, RLCorrector, load_corrector
+from cogblocks.amplification.l2 import L2Amplification
+from cogblocks.amplification.solution import library_fingerprint
+from cogblocks.blocks import Playback, Probe
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
+from cogblocks.sensing import KalmanEstimator
 from cogblocks.sim import Block, Diagram, Simulator
-from cogblocks.sim.params import block_with_ports, finite_number, one_of, positive_int
+from cogblocks.sim.params import finite_number, one_of
 
 __all__ = [
-    "PAPER",
     "AmplificationSetup",
-    "L2Amplification",
+    "PAPER",
     "amplification_setup",
     "plot_amplification",
     "pop_amplification",
@@ -55,121 +52,6 @@ PAPER = {
 }
 
 DELTA_POS_MM = 20.0  # terminal constraint (13c)
-
-
-class L2Amplification(Diagram):
-    """The L2 architecture of the PoP of Amplification, as one block.
-
-    ``v_h, p_h`` → :class:`~cogblocks.blocks.buffer.Buffer` (``buffer``) →
-    :class:`~cogblocks.blocks.encoding.LibraryProjector` (``projector``) → blending rule
-    (``blender``, a :class:`~cogblocks.blocks.encoding.VelocityBlender` by default) →
-    :class:`~cogblocks.blocks.encoding.PositionComputer` (``position``); the corrector
-    (``corrector``) sees positions and velocities and adds ``v_u`` to the blend. The corrector and
-    the blending rule can be swapped with :meth:`~cogblocks.sim.Diagram.replace` for any block with
-    the same ports.
-
-    Ports
-    -----
-    v_h : input, shape (3,), mm/s
-    p_h : input, shape (3,), mm
-    v_a, p_a : outputs, the altered velocity and position
-    c : output, the blending coefficient
-    v_r : output, the reference velocity
-    v_u, alpha : outputs, the correction and the corrector's action
-    nearest, reference : outputs, library indices of η_i and of the reference (−1 before the first decision)
-
-    Parameters
-    ----------
-    library : ReachLibrary
-        The movement library searched by the projector.
-    table : SolutionTable
-        w̃ on ``library`` for ``e_des`` (used by the default blender).
-    corrector : Block, optional
-        :class:`~cogblocks.blocks.rl.NoCorrection` by default, or an
-        :class:`~cogblocks.blocks.rl.RLCorrector`.
-    blending : Block, optional
-        A blending rule with the ports of :class:`~cogblocks.blocks.encoding.VelocityBlender`.
-    e_des : {0, 1}
-        1 encodes fear, 0 removes it (the fear and no-fear sets swap roles).
-    interval : int
-        ΔT, samples between two decisions (at most ``capacity``).
-    capacity : int
-        Samples kept by the buffer.
-    candidates : array_like of bool, optional
-        Library movements the projector may choose, as in
-        :class:`~cogblocks.blocks.encoding.LibraryProjector`.
-
-    Notes
-    -----
-    Bad data policy: that of the blocks inside. The buffer stores a non-finite or implausible
-    sample as the last good one, so the search and the corrector never see it; the blend passes a
-    non-finite ``v_h`` to ``v_a`` on that tick, and the position then holds.
-    """
-
-    def __init__(
-        self,
-        library: ReachLibrary,
-        table: SolutionTable,
-        *,
-        corrector: Block | None = None,
-        blending: Block | None = None,
-        e_des: int = 1,
-        interval: int = 10,
-        capacity: int = 200,
-        candidates: Any = None,
-    ) -> None:
-        super().__init__()
-        if not isinstance(library, ReachLibrary):
-            raise ValueError(f"L2Amplification: library must be a ReachLibrary, got {type(library).__name__}")
-        e_des = one_of(self, "e_des", e_des, (0, 1))
-        if not isinstance(table, SolutionTable) or table.e_des != e_des:
-            raise ValueError(
-                f"L2Amplification: table must be a SolutionTable for e_des={e_des}, "
-                f"got {type(table).__name__} for e_des={getattr(table, 'e_des', None)}"
-            )
-        capacity = positive_int(self, "capacity", capacity)
-        interval = positive_int(self, "interval", interval)
-        if interval > capacity:
-            raise ValueError(
-                f"L2Amplification: interval must be an integer in [1, capacity={capacity}], got {interval}"
-            )
-        if blending is not None:
-            block_with_ports(
-                self,
-                "blending",
-                blending,
-                inputs=BLENDING_INPUTS,
-                outputs=BLENDING_OUTPUTS,
-            )
-        if corrector is not None:
-            block_with_ports(
-                self, "corrector", corrector, inputs=("p_h", "p_a", "v_h", "v_a", "horizon"), outputs=("v_u", "alpha")
-            )
-        buffer = self.add("buffer", Buffer(capacity))
-        projector = self.add(
-            "projector", LibraryProjector(library, e_des=e_des, interval=interval, candidates=candidates)
-        )
-        blender = self.add("blender", blending if blending is not None else VelocityBlender(table))
-        fix = self.add("corrector", corrector if corrector is not None else NoCorrection())
-        position = self.add("position", PositionComputer())
-        self.connect(buffer.velocity, projector.velocity)
-        self.connect(buffer.count, projector.count)
-        for port in ("v_r", "nearest", "reference", "decisions"):
-            self.connect(f"projector.{port}", f"blender.{port}")
-        self.connect(projector.horizon, fix.horizon)
-        self.connect(fix.v_u, blender.v_u)
-        self.connect(blender.v_a, position.v, fix.v_a)
-        self.connect(position.p, fix.p_a)
-        self.expose_input("v_h", buffer.v, blender.v_h, fix.v_h)
-        self.expose_input("p_h", buffer.p, position.p_start, fix.p_h)
-        self.expose_output("v_a", blender.v_a)
-        self.expose_output("p_a", position.p)
-        self.expose_output("c", blender.c)
-        self.expose_output("v_r", projector.v_r)
-        self.expose_output("v_u", fix.v_u)
-        self.expose_output("alpha", fix.alpha)
-        self.expose_output("nearest", projector.nearest)
-        self.expose_output("reference", projector.reference)
 
 
 @dataclass(frozen=True)
@@ -267,7 +149,7 @@ def pop_amplification(
     encoder : EncoderNet, optional
         The classifier of the altered movement; the shipped one by default.
     corrector : Block, optional
-        :class:`~cogblocks.blocks.rl.NoCorrection` (default) or an :class:`~cogblocks.blocks.rl.RLCorrector`.
+        :class:`~cogblocks.amplification.NoCorrection` (default) or an :class:`~cogblocks.amplification.RLCorrector`.
     blending : Block, optional
         A blending rule replacing the :class:`VelocityBlender`.
     e_des : {0, 1}
@@ -275,7 +157,7 @@ def pop_amplification(
     front_end : {"recorded", "kalman"}
         ``"recorded"`` feeds the recorded velocity and position; ``"kalman"`` plays only the tracked
         positions (plus ``noise_mm`` of white noise, seeded by ``seed``) through a 3D
-        :class:`~cogblocks.blocks.estimation.KalmanEstimator` (block ``tracking``) whose position and
+        :class:`~cogblocks.sensing.KalmanEstimator` (block ``tracking``) whose position and
         velocity estimates feed the architecture, as on a live motion-capture stream. Without noise
         its frozen-sample detection is off (an exactly repeated resting position is a still hand).
     """
@@ -298,9 +180,7 @@ def pop_amplification(
     human_p = d.add("human_p", Playback(position, unit="mm", at_end="hold"))
     l2 = d.add(
         "l2",
-        L2Amplification(
-            library, table, corrector=corrector, blending=blending, e_des=e_des, capacity=library.max_len
-        ),
+        L2Amplification(library, table, corrector=corrector, blending=blending, e_des=e_des, capacity=library.max_len),
     )
     altered = d.add("altered", Buffer(library.max_len))
     classifier = d.add("encoder", EncoderClassifier(encoder))
@@ -362,7 +242,7 @@ def run_amplification(
     ----------
     variants : sequence of {"blend", "blend_rl", "optimised"}
         Blending alone, blending with the RL corrector, and the optimisation-based blending
-        (:class:`~cogblocks.analysis.optimal_blending.OptimalBlender`, without corrector; not run
+        (:class:`~cogblocks.amplification.OptimalBlender`, without corrector; not run
         unless asked).
     seed : int, optional
         Seed of the 70/30 split; by default the encoder's own validation split (see
@@ -428,7 +308,7 @@ def run_amplification(
 
 def _optimal_blender(setup: AmplificationSetup) -> Block:
     # imported here: casadi (about 0.1 s to import) is loaded only when the optimised variant is asked for
-    from cogblocks.analysis.optimal_blending import OptimalBlender
+    from cogblocks.amplification import OptimalBlender
 
     return OptimalBlender(setup.movements, setup.encoder, setup.table, e_des=setup.e_des)
 

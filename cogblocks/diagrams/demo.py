@@ -6,8 +6,9 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.blocks import KuramotoGroup, OrderParameter, Probe
+from cogblocks.blocks import Probe
 from cogblocks.sim import Diagram, Simulator
+from cogblocks.sync import KuramotoGroup, OrderParameter
 
 __all__ = ["kuramoto_diagram", "kuramoto_demo"]
 

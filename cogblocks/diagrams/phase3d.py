@@ -1,14 +1,14 @@
 """3D phase estimation (section 6): the phase chain, the estimator's accuracy, the Figure 14 analogue.
 
 :func:`phase_chain` runs the synchronisation architecture on 3D hand motion: the assisted
-person's positions → :class:`~cogblocks.blocks.phase3d.PhaseEstimator3D` → the L2 block of the
-Social Connectedness PoP → :class:`~cogblocks.blocks.phase3d.PositionComputer` → the avatar's 3D
+person's positions → :class:`~cogblocks.phase.PhaseEstimator3D` → the L2 block of the
+Social Connectedness PoP → :class:`~cogblocks.phase.PhasePositionComputer` → the avatar's 3D
 positions, with the other participants' phases from a Kuramoto group that sees the avatar.
 
-The online estimator (:class:`~cogblocks.blocks.phase3d.PhaseEstimator3D`) runs on synthetic hand
+The online estimator (:class:`~cogblocks.phase.PhaseEstimator3D`) runs on synthetic hand
 trajectories (:func:`~cogblocks.data.motion3d.generate_motion3d`) whose phase is known, and is
 compared with the ground truth and with the offline PCA-Hilbert estimate
-(:func:`~cogblocks.blocks.phase3d.offline_phase_pca_hilbert`). Errors are circular,
+(:func:`~cogblocks.phase.offline_phase_pca_hilbert`). Errors are circular,
 ``|wrap_π(θ_a − θ_b)|``, and counted only once the online estimate is valid (after the first
 period, the calibration period of Figure 14).
 """
@@ -19,14 +19,15 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.blocks import Blender, KuramotoGroup, OrderParameter, Playback, Probe, Substitute
+from cogblocks.blocks import Playback, Probe, Substitute
 from cogblocks.blocks.angles import wrap_pi
-from cogblocks.blocks.phase3d import PhaseEstimator3D, PositionComputer, offline_phase_pca_hilbert
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.data.motion3d import Motion3D, generate_motion3d
-from cogblocks.diagrams.sync import MOTIONS, L2Sync
+from cogblocks.diagrams.sync import MOTIONS
+from cogblocks.phase import PhaseEstimator3D, PhasePositionComputer, offline_phase_pca_hilbert
 from cogblocks.sim import Block, Diagram, Simulator
 from cogblocks.sim.params import finite_number, positive_int
+from cogblocks.sync import Blender, KuramotoGroup, L2Sync, OrderParameter
 
 __all__ = ["phase3d_accuracy", "phase_chain", "plot_phase3d", "run_phase_chain", "run_phase_estimator"]
 
@@ -45,7 +46,7 @@ def phase_chain(
     (:class:`PhaseEstimator3D` on the motion's reference) gives θ_L0; ``group`` is a Kuramoto
     group for everyone (its assisted participant's own phase is replaced by the estimate in
     ``theta``); ``l2`` (:class:`L2Sync`) blends θ_L0 with the motion computer's reference;
-    ``avatar`` (:class:`PositionComputer`) turns θ_L2 back into 3D positions on the reference
+    ``avatar`` (:class:`PhasePositionComputer`) turns θ_L2 back into 3D positions on the reference
     (the avatar moves in the reference's frame); ``order`` measures the group as it sees the
     avatar. Probes: ``r``, ``avatar_p``.
 
@@ -88,7 +89,7 @@ def phase_chain(
     d.connect(l2.theta_l2, kuramoto.theta_l2, seen.v)
     order = d.add("order", OrderParameter())
     d.connect(seen.y, order.theta)
-    avatar = d.add("avatar", PositionComputer(motion.reference, noise_std=avatar_noise_mm, seed=seed))
+    avatar = d.add("avatar", PhasePositionComputer(motion.reference, noise_std=avatar_noise_mm, seed=seed))
     d.connect(l2.theta_l2, avatar.theta)
     d.add("r", Probe())
     d.connect(order.r, "r.u")

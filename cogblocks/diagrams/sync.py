@@ -7,80 +7,15 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.blocks import (
-    ArmPositions,
-    Blender,
-    Demux,
-    KuramotoGroup,
-    Mux,
-    OrderParameter,
-    PhaseEstimator,
-    Probe,
-    Select,
-    Substitute,
-)
-from cogblocks.blocks.motion import MeanPhaseMotion, MotionComputer
+from cogblocks.blocks import Demux, Mux, Probe, Substitute
 from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.phase import PhaseEstimator
 from cogblocks.sim import Block, Diagram, Simulator
-from cogblocks.sim.params import block_with_ports, one_of, positive_int
+from cogblocks.sim.params import one_of
+from cogblocks.sync import ArmPositions, Blender, KuramotoGroup, MeanPhaseMotion, MotionComputer, OrderParameter
+from cogblocks.sync.l2 import L2Sync
 
-__all__ = ["L2Sync", "MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync"]
-
-
-class L2Sync(Diagram):
-    """The L2 cognitive architecture of the PoP of Social Connectedness, as one block.
-
-    ``theta`` (all participants' phases) → the assisted participant's phase
-    θ_L0 and a motion computer's θ_ref → :class:`~cogblocks.blocks.Blender` →
-    θ_L2. The motion computer also sees the blender's λ.
-
-    Ports
-    -----
-    theta : input, shape (N,), rad, wrapped
-    theta_l2 : output, the avatar's phase
-    theta_l0, theta_ref, lam : outputs, for looking inside
-
-    Parameters
-    ----------
-    motion : Block
-        A motion computer (ports ``theta``, ``lam`` → ``theta_ref``), e.g.
-        :class:`~cogblocks.blocks.motion.MotionComputer`.
-    assisted : int
-        0-based index of the assisted participant; the motion computer's own, if it has one.
-    blender : Block, optional
-        A blending rule with the ports of :class:`~cogblocks.blocks.Blender` (``theta_l0``,
-        ``theta_ref`` → ``theta_l2``, ``lam``); the deliverable's blender by default.
-
-    Notes
-    -----
-    Bad data policy: that of the blocks inside. With the library's motion computers and
-    blender a non-finite phase never reaches ``theta_l2``, ``theta_ref`` or ``lam`` (the
-    motion computer leaves it out or coasts, the blender holds or passes θ_L0 unaltered);
-    ``theta_l0``, the assisted participant's phase as given, shows it.
-    """
-
-    def __init__(self, motion: Block, assisted: int, blender: Block | None = None) -> None:
-        super().__init__()
-        block_with_ports(self, "motion", motion, inputs=("theta", "lam"), outputs=("theta_ref",))
-        assisted = positive_int(self, "assisted", assisted, minimum=0)
-        own = getattr(motion, "assisted", assisted)
-        n = getattr(motion, "n", None)
-        if own != assisted or (n is not None and assisted >= n):
-            allowed = f"the motion computer's assisted index {own}" if own != assisted else f"an index below n = {n}"
-            raise ValueError(f"L2Sync: assisted must be {allowed}, got {assisted!r}")
-        if blender is not None:
-            block_with_ports(self, "blender", blender, inputs=("theta_l0", "theta_ref"), outputs=("theta_l2", "lam"))
-        select = self.add("select_l0", Select(assisted))
-        self.add("motion", motion)
-        blend = self.add("blender", blender if blender is not None else Blender())
-        self.connect(select.y, blend.theta_l0)
-        self.connect(motion.theta_ref, blend.theta_ref)
-        self.connect(blend.lam, motion.lam)
-        self.expose_input("theta", select.u, motion.theta)
-        self.expose_output("theta_l2", blend.theta_l2)
-        self.expose_output("theta_l0", select.y)
-        self.expose_output("theta_ref", motion.theta_ref)
-        self.expose_output("lam", blend.lam)
+__all__ = ["MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync"]
 
 
 def _mean_motion(group: SyncGroup) -> Block:
@@ -94,13 +29,13 @@ def _l3_motion(group: SyncGroup, policy: Any) -> Block:
 
 
 def _dqn_motion(group: SyncGroup) -> Block:
-    from cogblocks.training.l3_policies import DQNPolicy
+    from cogblocks.sync import DQNPolicy
 
     return _l3_motion(group, DQNPolicy.default())
 
 
 def _lookahead_motion(group: SyncGroup) -> Block:
-    from cogblocks.training.l3_policies import LookaheadPolicy
+    from cogblocks.sync import LookaheadPolicy
 
     return _l3_motion(group, LookaheadPolicy.for_group(group))
 
@@ -192,9 +127,7 @@ def pop_sync(
     one_of("pop_sync", "front_end", front_end, ("lowpass", "kalman"))
     params = _group_of(group)
     d = Diagram()
-    kuramoto = d.add(
-        "group", KuramotoGroup(params.omega, params.gain, assisted=params.assisted if l2 else None)
-    )
+    kuramoto = d.add("group", KuramotoGroup(params.omega, params.gain, assisted=params.assisted if l2 else None))
     order = d.add("order", OrderParameter())
     if l2:
         if isinstance(motion, str):
@@ -205,9 +138,7 @@ def pop_sync(
         seen = d.add("seen", Substitute(params.assisted))
         d.connect(kuramoto.theta, seen.u)
         if domain == "position":
-            sensing = d.add(
-                "sensing", phase_sensing(params.n, noise_std=noise_std, seed=seed, front_end=front_end)
-            )
+            sensing = d.add("sensing", phase_sensing(params.n, noise_std=noise_std, seed=seed, front_end=front_end))
             d.connect(kuramoto.theta, sensing.theta)
             d.connect(sensing.theta_hat, arch.theta)
         else:

@@ -61,6 +61,10 @@ class Block:
         The block's name in its diagram.
     """
 
+    #: True for a :class:`~cogblocks.sim.Diagram`: the compiler flattens composite blocks. A flag,
+    #: not ``isinstance``, so that the compiler and renderers need not import the diagram module.
+    composite: bool = False
+
     def __init__(self, *, period: float | None = None) -> None:
         self._inputs: dict[str, Input] = {}
         self._outputs: dict[str, Output] = {}

@@ -16,8 +16,8 @@ from cogblocks.sim.errors import DiagramError, SimulationError
 from cogblocks.sim.loops import order_blocks
 from cogblocks.sim.ownership import leaf_blocks, private_copy, running_plans
 from cogblocks.sim.ports import Input, Output
-from cogblocks.sim.signal import Signal
 from cogblocks.sim.snapshot import check_snapshot, load_snapshot, save_snapshot
+from cogblocks.sim.specs import check_driven, resolve_specs
 
 if TYPE_CHECKING:
     from cogblocks.sim.diagram import Diagram
@@ -80,8 +80,8 @@ class CompiledDiagram:
         self._flatten(diagram, "", None, leaves, periods, drivers, external)
         self._ext_outputs = {name: self._leaf_output(diagram, name) for name in diagram._exposed_out}
         self._paths = {id(b): p for p, b in leaves.items()}
-        self._check_driven(leaves, drivers, external)
-        self._resolve_specs(leaves, drivers, external)
+        check_driven(leaves, drivers, external, self._name)
+        resolve_specs(diagram, leaves, drivers, external, self._ext_outputs, self._name)
         ticks = self._periods(leaves, periods)
         for path, block in leaves.items():
             block.dt = ticks[path] * self.dt
@@ -142,12 +142,11 @@ class CompiledDiagram:
 
     # -- flattening ----------------------------------------------------------
     def _flatten(self, d, prefix, period, leaves, periods, drivers, external) -> None:
-        from cogblocks.sim.diagram import Diagram
 
         own_period = d.period if d.period is not None else period
         for name, child in d._children.items():
             path = prefix + name
-            if isinstance(child, Diagram):
+            if child.composite:
                 self._flatten(child, path + ".", own_period, leaves, periods, drivers, external)
             else:
                 leaves[path] = child
@@ -161,17 +160,15 @@ class CompiledDiagram:
                 external[name] = self._leaf_inputs(d, name)
 
     def _leaf_output(self, block: Block, port: str) -> Output:
-        from cogblocks.sim.diagram import Diagram
 
-        while isinstance(block, Diagram):
+        while block.composite:
             child, port = block._exposed_out[port]
             block = block._children[child]
         return block._outputs[port]
 
     def _leaf_inputs(self, block: Block, port: str) -> list[Input]:
-        from cogblocks.sim.diagram import Diagram
 
-        if not isinstance(block, Diagram):
+        if not block.composite:
             return [block._inputs[port]]
         found: list[Input] = []
         for child, child_port in block._exposed_in[port]:
@@ -182,90 +179,6 @@ class CompiledDiagram:
         return f"{self._paths[id(port.block)]}.{port.name}"
 
     # -- validation ----------------------------------------------------------
-    def _check_driven(self, leaves, drivers, external) -> None:
-        fed_externally = {inp for targets in external.values() for inp in targets}
-        missing = [
-            self._name(inp)
-            for block in leaves.values()
-            for inp in block._inputs.values()
-            if inp not in drivers and inp not in fed_externally and inp.default is None
-        ]
-        if missing:
-            raise DiagramError(
-                "unconnected input(s) with no default: "
-                + ", ".join(missing)
-                + "; connect them, expose them as diagram inputs, or give the port a default"
-            )
-
-    def _resolve_specs(self, leaves, drivers, external) -> None:
-        ext_specs = {inp: self.diagram._inputs[name].spec for name, targets in external.items() for inp in targets}
-
-        def source_spec(inp: Input) -> Signal | None:
-            if inp in drivers:
-                return drivers[inp].spec
-            if inp in ext_specs:
-                spec = ext_specs[inp]
-                return spec if spec.concrete else None
-            default = inp.default
-            return inp.declared.merge(
-                Signal(shape=default.shape, dtype=np.float64 if default.dtype.kind in "iuf" else default.dtype)
-            )
-
-        pending = [o for b in leaves.values() for o in b._outputs.values() if o.like is not None]
-        for out in pending:
-            out.spec = None
-        while pending:
-            progressed = []
-            for out in pending:
-                spec = source_spec(out.block._inputs[out.like])
-                if spec is not None:
-                    # an override may be a function of the copied field (an integrator's unit)
-                    out.spec = spec.with_(
-                        **{
-                            field: value(getattr(spec, field)) if callable(value) else value
-                            for field, value in out.like_overrides.items()
-                        }
-                    )
-                    progressed.append(out)
-            if not progressed:
-                self._refuse_open_diagram_inputs(pending, external)
-                names = ", ".join(self._name(o) for o in pending)
-                raise DiagramError(
-                    f"cannot infer the spec of {names}: their inputs are fed only by other generic blocks "
-                    "(a loop); give one of them an explicit spec (shape=..., unit=...)"
-                )
-            pending = [o for o in pending if o not in progressed]
-        for block in leaves.values():
-            for inp in block._inputs.values():
-                spec = source_spec(inp)
-                if spec is None:
-                    raise DiagramError(
-                        f"input {self._name(inp)} is fed by a diagram input whose spec is not fully known "
-                        f"({inp.declared}); give expose_input(..., spec=Signal(...))"
-                    )
-                src_name = self._name(drivers[inp]) if inp in drivers else "its source"
-                problem = spec.mismatch(inp.declared)
-                if problem:
-                    raise DiagramError(
-                        f"cannot connect {src_name} {spec} to {self._name(inp)} {inp.declared}: {problem}"
-                    )
-                inp.spec = inp.declared.merge(spec)
-        for name, port in self.diagram._outputs.items():
-            port.spec = self._ext_outputs[name].spec
-
-    def _refuse_open_diagram_inputs(self, pending, external) -> None:
-        """Name the diagram inputs without a full spec that leave generic blocks with nothing to copy."""
-        for name, targets in external.items():
-            spec = self.diagram._inputs[name].spec
-            fed = [self._name(o) for o in pending if o.block._inputs[o.like] in targets]
-            if fed and not spec.concrete:
-                raise DiagramError(
-                    f"the diagram input {name!r} has no full spec ({spec}) and feeds only generic blocks "
-                    f"({', '.join(fed)}: outputs that copy the spec of their input), so nothing tells its shape "
-                    "and unit; "
-                    f"give it one: expose_input({name!r}, ..., spec=Signal(shape=..., unit=...))"
-                )
-
     def _periods(self, leaves, periods) -> dict[str, int]:
         ticks: dict[str, int] = {}
         for path, period in periods.items():

@@ -49,6 +49,8 @@ class Diagram(Block):
     2.0
     """
 
+    composite = True
+
     def __init__(self, *, period: float | None = None) -> None:
         super().__init__(period=period)
         self._children: dict[str, Block] = {}

@@ -155,9 +155,7 @@ def block_with_ports(
     corrector), so that a wrong one is refused when built rather than at ``connect``.
     """
     ins, outs = list(inputs), list(outputs)
-    wanted = " and ".join(
-        part for part in (f"inputs {ins}" if ins else "", f"outputs {outs}" if outs else "") if part
-    )
+    wanted = " and ".join(part for part in (f"inputs {ins}" if ins else "", f"outputs {outs}" if outs else "") if part)
     allowed = f"a Block with {wanted}" if wanted else "a Block"
     if not isinstance(value, Block):
         raise ValueError(f"{_owner(owner)}: {name} must be {allowed}, got {type(value).__name__}")

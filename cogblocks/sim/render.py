@@ -65,10 +65,9 @@ def _leaf_label(block, name: str) -> str:
 
 def _wire_ends(d: Diagram, prefix: str, child: str, port: str, inbound: bool) -> str:
     """Node id of a wire end; sub-diagram ends point at the sub-diagram's boundary node."""
-    from cogblocks.sim.diagram import Diagram as _Diagram
 
     block = d._children[child]
-    if isinstance(block, _Diagram):
+    if block.composite:
         side = "in" if inbound else "out"
         return _node_id(f"{prefix}{child}.{side}_{port}")
     return _node_id(prefix + child)
@@ -82,14 +81,13 @@ def to_mermaid(d: Diagram) -> str:
 
 
 def _mermaid_body(d: Diagram, prefix: str, lines: list[str], indent: str) -> None:
-    from cogblocks.sim.diagram import Diagram as _Diagram
 
     for name in d._exposed_in:
         lines.append(f'{indent}{_node_id(prefix + "in_" + name)}(["{name}"])')
     for name in d._exposed_out:
         lines.append(f'{indent}{_node_id(prefix + "out_" + name)}(["{name}"])')
     for name, block in d._children.items():
-        if isinstance(block, _Diagram):
+        if block.composite:
             sub = prefix + name + "."
             lines.append(f'{indent}subgraph {_node_id(prefix + name)}["{name}: {type(block).__name__}"]')
             _mermaid_body(block, sub, lines, indent + "    ")
@@ -120,14 +118,13 @@ def to_dot(d: Diagram) -> str:
 
 
 def _dot_body(d: Diagram, prefix: str, lines: list[str], indent: str) -> None:
-    from cogblocks.sim.diagram import Diagram as _Diagram
 
     for name in d._exposed_in:
         lines.append(f'{indent}{_node_id(prefix + "in_" + name)} [label="{name}", shape=ellipse];')
     for name in d._exposed_out:
         lines.append(f'{indent}{_node_id(prefix + "out_" + name)} [label="{name}", shape=ellipse];')
     for name, block in d._children.items():
-        if isinstance(block, _Diagram):
+        if block.composite:
             lines.append(f"{indent}subgraph cluster_{_node_id(prefix + name)} {{")
             lines.append(f'{indent}    label="{name}: {type(block).__name__}";')
             _dot_body(block, prefix + name + ".", lines, indent + "    ")

@@ -70,7 +70,7 @@ class Simulator:
 
     def _resolve_probes(self, probes) -> dict[str, str | None]:
         """Probe names mapped to output paths, or to None for a ``Probe`` block (recorded at its input)."""
-        from cogblocks.blocks.core import Probe
+        from cogblocks.sim.probe import Probe
 
         found: dict[str, str | None] = {path: None for path, b in self.compiled.blocks.items() if isinstance(b, Probe)}
         if probes is None:

@@ -3,10 +3,10 @@
 The corrector does not change what the projector sees (the buffer holds the human movement), so
 the blend ``c(t)·v_h(t) + (1 − c(t))·v_r(t)`` and the projector's horizon of a movement are the same
 whatever the corrector does. :func:`record_episodes` records them once per movement by running the
-:class:`~cogblocks.diagrams.amplification.L2Amplification` diagram itself (without correction), so the
+:class:`~cogblocks.amplification.L2Amplification` diagram itself (without correction), so the
 environment cannot drift from the architecture. :class:`AmplificationEnv` then replays the
 corrector's loop in NumPy for a batch of episodes, exactly as
-:class:`~cogblocks.blocks.rl.RLCorrector` and :class:`~cogblocks.blocks.encoding.PositionComputer`
+:class:`~cogblocks.amplification.RLCorrector` and :class:`~cogblocks.amplification.VelocityPositionComputer`
 run it in the diagram::
 
     v_u(t) = k_u α(t) ⊙ (p_h(t−1) − p_a(t−1)),  v_a(t) = blend(t) + v_u(t),  p_a(t) = p_a(t−1) + dt v_a(t)
@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cogblocks.blocks.core import Playback
-from cogblocks.blocks.encoding import SolutionTable
-from cogblocks.blocks.rl import ACTIONS, corrector_state, reward_constants, step_reward
+from cogblocks.amplification import SolutionTable
+from cogblocks.amplification.corrector import ACTIONS, corrector_state, reward_constants, step_reward
+from cogblocks.blocks import Playback
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim import Diagram, Simulator
 
@@ -80,7 +80,7 @@ def record_episodes(
     interval : int
         ΔT of the projector.
     """
-    from cogblocks.diagrams.amplification import L2Amplification
+    from cogblocks.amplification import L2Amplification
 
     n_steps = movements.max_len
     columns: dict[str, list[np.ndarray]] = {"v_h": [], "p_h": [], "blend": [], "horizon": []}
@@ -99,8 +99,13 @@ def record_episodes(
         )
         d.connect(v.y, l2.v_h)
         d.connect(p.y, l2.p_h)
-        probes = {"v_h": "v.y", "p_h": "p.y", "blend": "l2.v_a", "horizon": "l2.projector.horizon",
-                  "reference": "l2.reference"}
+        probes = {
+            "v_h": "v.y",
+            "p_h": "p.y",
+            "blend": "l2.v_a",
+            "horizon": "l2.projector.horizon",
+            "reference": "l2.reference",
+        }
         trace = Simulator(d, probes=probes).run(n_steps=n_steps)
         for name in columns:
             columns[name].append(trace[name])
@@ -188,7 +193,7 @@ class AmplificationEnv:
         return total
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Hold the actions (indices into :data:`~cogblocks.blocks.rl.ACTIONS`) for one interval.
+        """Hold the actions (indices into :data:`~cogblocks.amplification.corrector.ACTIONS`) for one interval.
 
         Returns
         -------

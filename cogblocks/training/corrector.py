@@ -4,7 +4,7 @@ Usage::
 
     python -m cogblocks.training.corrector --seed 0 [--episodes 1100] [--out cogblocks/data/weights/corrector.pt]
 
-The settings of the notes: a :class:`~cogblocks.blocks.rl.CorrectorNet` (two hidden layers of 128
+The settings of the notes: a :class:`~cogblocks.amplification.CorrectorNet` (two hidden layers of 128
 ReLU units, 8 actions), discount 0.99 per tick, Adam with learning rate 1e-3, ε-greedy exploration
 from ε = 1 multiplied by 0.995 after each episode (floor 0.001, as in the prototype), the target
 network copied after each episode, 1100 episodes of 200 ticks. Each episode replays one no-fear
@@ -35,8 +35,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from cogblocks.blocks.encoding import library_fingerprint
-from cogblocks.blocks.rl import ACTIONS, STATE_SIZE, CorrectorNet
+from cogblocks.amplification import CorrectorNet
+from cogblocks.amplification.corrector import ACTIONS, STATE_SIZE
+from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup
 from cogblocks.training.amplification_env import AmplificationEnv, Episodes, record_episodes
 from cogblocks.training.dqn import DQNLearner, ReplayBuffer
@@ -174,9 +175,11 @@ def train(
             if record["return"] > best_return:
                 best_return, best_state, best_episode = record["return"], copy.deepcopy(online.state_dict()), episode
             if log is not None:
-                log(f"episode {episode}/{config.episodes}  eps {epsilon:.3f}  return {record['return']:.0f}  "
+                log(
+                    f"episode {episode}/{config.episodes}  eps {epsilon:.3f}  return {record['return']:.0f}  "
                     f"terminal ok {record['terminal_ok']:.2f}  distance {record['final_distance_mm']:.1f} mm  "
-                    f"({time.perf_counter() - started:.0f} s)")
+                    f"({time.perf_counter() - started:.0f} s)"
+                )
     online.load_state_dict(best_state)
     online.eval()
     return TrainingResult(network=online, history=history, best_episode=best_episode)
@@ -196,8 +199,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         description="Train the RL corrector of the PoP of Amplification (DQN, terminal-position constraint).",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, draws, exploration, replay (default 0)")
-    parser.add_argument("--episodes", type=int, default=CorrectorConfig.episodes,
-                        help=f"training episodes of 200 ticks (default {CorrectorConfig.episodes})")
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        default=CorrectorConfig.episodes,
+        help=f"training episodes of 200 ticks (default {CorrectorConfig.episodes})",
+    )
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"checkpoint to write (default {DEFAULT_OUT})")
     args = parser.parse_args(argv)
 
@@ -210,11 +217,21 @@ def main(argv: Sequence[str] | None = None) -> None:
     best = next(r for r in result.history if r["episode"] == result.best_episode)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     library_sha256 = library_fingerprint(amplification_setup(None, 1).library)
-    torch.save({"state_dict": result.network.state_dict(), "seed": args.seed, "config": asdict(config),
-                "library_sha256": library_sha256,
-                "best_episode": result.best_episode, "history": result.history}, args.out)
-    print(f"saved the network of episode {result.best_episode} (return {best['return']:.0f}, terminal ok "
-          f"{best['terminal_ok']:.2f}) to {args.out} after {time.perf_counter() - started:.0f} s")
+    torch.save(
+        {
+            "state_dict": result.network.state_dict(),
+            "seed": args.seed,
+            "config": asdict(config),
+            "library_sha256": library_sha256,
+            "best_episode": result.best_episode,
+            "history": result.history,
+        },
+        args.out,
+    )
+    print(
+        f"saved the network of episode {result.best_episode} (return {best['return']:.0f}, terminal ok "
+        f"{best['terminal_ok']:.2f}) to {args.out} after {time.perf_counter() - started:.0f} s"
+    )
 
 
 if __name__ == "__main__":

@@ -52,8 +52,9 @@ class ReplayBuffer:
         self.size = 0
         self._cursor = 0
 
-    def add(self, obs: np.ndarray, actions: np.ndarray, rewards: np.ndarray, next_obs: np.ndarray,
-            terminal: np.ndarray) -> None:
+    def add(
+        self, obs: np.ndarray, actions: np.ndarray, rewards: np.ndarray, next_obs: np.ndarray, terminal: np.ndarray
+    ) -> None:
         """Store a batch of transitions, overwriting the oldest when full.
 
         Parameters
@@ -77,8 +78,9 @@ class ReplayBuffer:
     def sample(self, rng: np.random.Generator, batch_size: int) -> Batch:
         """Uniform sample, with replacement, of ``batch_size`` stored transitions (one draw of ``rng``)."""
         rows = rng.integers(self.size, size=batch_size)
-        return Batch(*(torch.from_numpy(a[rows])
-                       for a in (self.obs, self.actions, self.rewards, self.next_obs, self.terminal)))
+        return Batch(
+            *(torch.from_numpy(a[rows]) for a in (self.obs, self.actions, self.rewards, self.next_obs, self.terminal))
+        )
 
 
 class DQNLearner(Generic[Q]):

@@ -6,7 +6,7 @@ Usage::
 
 As in the appendix paper (section V-B): the inputs are the library's velocities restricted to each
 movement's duration and resampled to 20 points per axis (60 inputs); the network is
-:class:`~cogblocks.blocks.encoding.EncoderNet` (200 ReLU units, dropout, sigmoid), trained with Adam
+:class:`~cogblocks.amplification.EncoderNet` (200 ReLU units, dropout, sigmoid), trained with Adam
 (learning rate 1e-3) on the binary cross-entropy. Five random stratified 70/30 splits of the
 synthetic library (``ReachLibrary.split`` with seeds ``5·seed … 5·seed + 4``) each train one
 network. Each is validated with the clipping rule: per class, the accuracy among the decided
@@ -29,7 +29,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from cogblocks.blocks.encoding import FEAR, NO_FEAR, EncoderNet, clip_decision, library_fingerprint
+from cogblocks.amplification import EncoderNet
+from cogblocks.amplification.encoder import FEAR, NO_FEAR, clip_decision
+from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
@@ -186,8 +188,15 @@ def format_table(results: Sequence[FoldResult]) -> str:
     ]
 
     def row(label: str, acc: float, fear: dict, no_fear: dict) -> str:
-        cells = [acc, fear["accuracy"], fear["misclassified"], fear["undecided"],
-                 no_fear["accuracy"], no_fear["misclassified"], no_fear["undecided"]]
+        cells = [
+            acc,
+            fear["accuracy"],
+            fear["misclassified"],
+            fear["undecided"],
+            no_fear["accuracy"],
+            no_fear["misclassified"],
+            no_fear["undecided"],
+        ]
         return f"| {label} | " + " | ".join(f"{100 * c:.1f}" for c in cells) + " |"
 
     for r in results:
@@ -208,8 +217,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         description="Train the encoding classifier of the PoP of Amplification (5 random 70/30 splits).",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the splits and the weights (default 0)")
-    parser.add_argument("--epochs", type=int, default=EncoderConfig.epochs,
-                        help=f"passes over the training data (default {EncoderConfig.epochs})")
+    parser.add_argument(
+        "--epochs",
+        type=int,
+        default=EncoderConfig.epochs,
+        help=f"passes over the training data (default {EncoderConfig.epochs})",
+    )
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"checkpoint to write (default {DEFAULT_OUT})")
     args = parser.parse_args(argv)
 
@@ -229,15 +242,22 @@ def main(argv: Sequence[str] | None = None) -> None:
         "split_seed": best.split_seed,
         "seed": args.seed,
         "config": asdict(config),
-        "cv": [{"split_seed": r.split_seed, "accuracy": r.accuracy, **{
-            f"{name}_{key}": value for name, rep in r.report.items() for key, value in rep.items()}}
-            for r in results],
+        "cv": [
+            {
+                "split_seed": r.split_seed,
+                "accuracy": r.accuracy,
+                **{f"{name}_{key}": value for name, rep in r.report.items() for key, value in rep.items()},
+            }
+            for r in results
+        ],
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     torch.save(checkpoint, args.out)
     print(format_table(results))
-    print(f"saved the network of split seed {best.split_seed} (accuracy {best.accuracy:.3f}) to {args.out} "
-          f"after {time.perf_counter() - started:.0f} s")
+    print(
+        f"saved the network of split seed {best.split_seed} (accuracy {best.accuracy:.3f}) to {args.out} "
+        f"after {time.perf_counter() - started:.0f} s"
+    )
 
 
 if __name__ == "__main__":

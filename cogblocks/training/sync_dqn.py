@@ -41,9 +41,12 @@ import numpy as np
 import torch
 
 from cogblocks.data.groups import TABLE2, TABLE3_CHANGE_PCT, SyncGroup
+from cogblocks.sync import DQNPolicy, SyncModel
+from cogblocks.sync.dqn_policy import OBS_SIZE, L3QNetwork
+from cogblocks.sync.model import DT
+from cogblocks.sync.motion import ACTIONS
 from cogblocks.training.dqn import DQNLearner, ReplayBuffer
-from cogblocks.training.l3_policies import ACTIONS, OBS_SIZE, DQNPolicy, L3QNetwork
-from cogblocks.training.sync_env import DT, SyncEnv, SyncModel, evaluate
+from cogblocks.training.sync_env import SyncEnv, evaluate
 
 __all__ = ["DQNConfig", "TrainingResult", "main", "train"]
 
@@ -108,8 +111,9 @@ class DQNConfig:
     checks_per_episode: int = 30
 
 
-QUICK_CONFIG = DQNConfig(episodes=2, copies=2, episode_seconds=20.0, learning_starts=1_000, buffer_size=50_000,
-                         checks_per_episode=3)
+QUICK_CONFIG = DQNConfig(
+    episodes=2, copies=2, episode_seconds=20.0, learning_starts=1_000, buffer_size=50_000, checks_per_episode=3
+)
 """Smoke-test settings of ``--quick``: a minute of training on 20 s episodes."""
 
 
@@ -159,8 +163,9 @@ def _capped(group: SyncGroup, episode_seconds: float | None) -> SyncGroup:
     return dataclasses.replace(group, duration=episode_seconds)
 
 
-def _evaluate_until_worse(policy: DQNPolicy, groups: dict[int, SyncGroup], best_score: float,
-                          episode_seconds: float | None) -> dict[int, float]:
+def _evaluate_until_worse(
+    policy: DQNPolicy, groups: dict[int, SyncGroup], best_score: float, episode_seconds: float | None
+) -> dict[int, float]:
     """Improvement (%) per group, shortest group first, stopping once one cannot beat ``best_score``.
 
     The selection score is a minimum over groups, so a group at or below the best score so far rules the
@@ -180,8 +185,13 @@ def _selection_score(change_pct: dict[int, float]) -> float:
     return min(change_pct[g] / TABLE3_CHANGE_PCT[g] for g in change_pct)
 
 
-def train(config: DQNConfig, seed: int, *, groups: dict[int, SyncGroup] | None = None,
-          log: Callable[[str], None] | None = print) -> TrainingResult:
+def train(
+    config: DQNConfig,
+    seed: int,
+    *,
+    groups: dict[int, SyncGroup] | None = None,
+    log: Callable[[str], None] | None = print,
+) -> TrainingResult:
     """Train an :class:`L3QNetwork` with DQN in the closed loop with the L2 blender.
 
     Parameters
@@ -210,12 +220,14 @@ def train(config: DQNConfig, seed: int, *, groups: dict[int, SyncGroup] | None =
         torch.set_num_threads(threads)
 
 
-def _train(config: DQNConfig, seed: int, groups: dict[int, SyncGroup], log: Callable[[str], None] | None
-           ) -> TrainingResult:
+def _train(
+    config: DQNConfig, seed: int, groups: dict[int, SyncGroup], log: Callable[[str], None] | None
+) -> TrainingResult:
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    learner = DQNLearner(L3QNetwork(), learning_rate=config.learning_rate, max_grad_norm=config.max_grad_norm,
-                         double_q=config.double_q)
+    learner = DQNLearner(
+        L3QNetwork(), learning_rate=config.learning_rate, max_grad_norm=config.max_grad_norm, double_q=config.double_q
+    )
     online = learner.online
     buffer = ReplayBuffer(config.buffer_size, OBS_SIZE)
     envs = _grouped_envs(list(groups.values()), config.copies, config.episode_seconds)
@@ -241,15 +253,14 @@ def _train(config: DQNConfig, seed: int, groups: dict[int, SyncGroup], log: Call
         next_obs, rewards, offset = [], [], 0
         for env in envs:
             r_now = env.r
-            env_next_obs, r_next, done = env.step(actions[offset:offset + env.batch_size])
+            env_next_obs, r_next, done = env.step(actions[offset : offset + env.batch_size])
             offset += env.batch_size
             next_obs.append(env_next_obs)
             rewards.append(config.reward_scale * (r_next - r_now))
             if done:
                 env.reset()
         # Time limits truncate, never terminate: every transition bootstraps.
-        buffer.add(obs, actions, np.concatenate(rewards), np.concatenate(next_obs),
-                   np.zeros(len(actions), dtype=bool))
+        buffer.add(obs, actions, np.concatenate(rewards), np.concatenate(next_obs), np.zeros(len(actions), dtype=bool))
         # After a reset the next decision starts from the fresh episode, not from next_obs.
         obs = np.concatenate([env.observation for env in envs])
 
@@ -260,20 +271,27 @@ def _train(config: DQNConfig, seed: int, groups: dict[int, SyncGroup], log: Call
                 learner.update_target()
 
         if (tick - 1) % ticks_per_round + 1 in check_ticks:
-            change_pct = _evaluate_until_worse(DQNPolicy(copy.deepcopy(online)), groups, best_score,
-                                               config.episode_seconds)
+            change_pct = _evaluate_until_worse(
+                DQNPolicy(copy.deepcopy(online)), groups, best_score, config.episode_seconds
+            )
             score = _selection_score(change_pct)
-            record = {"episode": tick / ticks_per_round, "epsilon": epsilon,
-                      "loss": float(np.mean(losses)) if losses else float("nan"), "change_pct": change_pct,
-                      "score": score}
+            record = {
+                "episode": tick / ticks_per_round,
+                "epsilon": epsilon,
+                "loss": float(np.mean(losses)) if losses else float("nan"),
+                "change_pct": change_pct,
+                "score": score,
+            }
             if score > best_score:
                 best_score, best_state, best_check = score, copy.deepcopy(online.state_dict()), len(history)
             history.append(record)
             if log is not None:
                 changes = " ".join(f"g{g} {c:+.2f}%" for g, c in change_pct.items())
-                log(f"episode {record['episode']:.2f}/{config.episodes}  eps {epsilon:.3f}  loss {record['loss']:.4f}"
+                log(
+                    f"episode {record['episode']:.2f}/{config.episodes}  eps {epsilon:.3f}  loss {record['loss']:.4f}"
                     f"  {changes}  score {score:.3f}  ({time.perf_counter() - started:.0f} s, "
-                    f"CPU {time.process_time() - started_cpu:.0f} s)")
+                    f"CPU {time.process_time() - started_cpu:.0f} s)"
+                )
             losses = []
 
     online.load_state_dict(best_state)
@@ -288,11 +306,18 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of weights, exploration and replay (default 0)")
     parser.add_argument("--out", type=Path, required=True, help="where to save the selected network's state_dict")
-    parser.add_argument("--episodes", type=int, default=None,
-                        help=f"training rounds, one 300 s episode per copy of groups 2 and 3 "
-                             f"(default {DQNConfig.episodes}; {QUICK_CONFIG.episodes} with --quick)")
-    parser.add_argument("--quick", action="store_true",
-                        help="smoke test: 20 s episodes, fewer copies, rounds and checks (about a minute)")
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        default=None,
+        help=f"training rounds, one 300 s episode per copy of groups 2 and 3 "
+        f"(default {DQNConfig.episodes}; {QUICK_CONFIG.episodes} with --quick)",
+    )
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="smoke test: 20 s episodes, fewer copies, rounds and checks (about a minute)",
+    )
     args = parser.parse_args(argv)
 
     config = QUICK_CONFIG if args.quick else DQNConfig()
@@ -304,8 +329,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     torch.save(result.network.state_dict(), args.out)
     best = result.history[result.best]
     changes = ", ".join(f"group {g} {c:+.2f} %" for g, c in best["change_pct"].items())
-    print(f"saved the network of episode {best['episode']:.2f} ({changes}) to {args.out} "
-          f"after {time.perf_counter() - started:.0f} s")
+    print(
+        f"saved the network of episode {best['episode']:.2f} ({changes}) to {args.out} "
+        f"after {time.perf_counter() - started:.0f} s"
+    )
 
 
 if __name__ == "__main__":

@@ -7,19 +7,11 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from cogblocks.analysis.linearize import kuramoto_jacobian, kuramoto_linearization, linearize
-from cogblocks.blocks import (
-    Blender,
-    DiscreteLTI,
-    Gain,
-    KuramotoGroup,
-    LowPass,
-    Sum,
-    UnitDelay,
-    ring_adjacency,
-)
+from cogblocks.analysis import kuramoto_jacobian, kuramoto_linearization, linearize
+from cogblocks.blocks import DiscreteLTI, Gain, LowPass, Sum, UnitDelay
 from cogblocks.data.groups import TABLE2
 from cogblocks.sim import Block, Diagram, Signal
+from cogblocks.sync import Blender, KuramotoGroup, ring_adjacency
 
 ALL_TO_ALL = np.ones((3, 3)) - np.eye(3)
 # ω = 3 ∓ (sin(π/3) + sin(π/6)): the all-to-all triangle locks at offsets (−π/6, 0, π/6)

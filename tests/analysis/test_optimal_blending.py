@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.analysis.optimal_blending import OptimalBlender, encoder_to_casadi, input_map
-from cogblocks.blocks.encoding import VelocityBlender
+from cogblocks.amplification import OptimalBlender, VelocityBlender
+from cogblocks.amplification.encoder_casadi import encoder_to_casadi, input_map
 from cogblocks.cli import main
 from cogblocks.data.features import resample_movement
 from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, pop_amplification, run_amplification

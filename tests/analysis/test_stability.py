@@ -6,10 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from cogblocks.analysis.stability import check_blender, lambda_report
-from cogblocks.blocks import Blender, Playback
-from cogblocks.blocks.blend import DELIVERABLE_BLENDER
+from cogblocks.blocks import Playback
 from cogblocks.sim import Diagram, DiagramError, Simulator
+from cogblocks.sync import DELIVERABLE_BLENDER, Blender, check_blender, lambda_report
 
 FAR = 2.5  # reference offset beyond any λ_max used here: the blender sits at its limit
 STEEP = dict(lam_min=0.2, lam_max=1.0, e_max=0.8, kappa_plus=1.0, kappa_minus=2.5)  # λ* = 0.5 < e_max

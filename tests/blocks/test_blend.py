@@ -6,9 +6,9 @@ import re
 import numpy as np
 import pytest
 
-from cogblocks.blocks import Blender, Playback
-from cogblocks.blocks.blend import DELIVERABLE_BLENDER
+from cogblocks.blocks import Playback
 from cogblocks.sim import Diagram, DiagramError, Simulator
+from cogblocks.sync import DELIVERABLE_BLENDER, Blender
 
 
 def run_blender(theta_l0, theta_ref, dt=0.01, **params):

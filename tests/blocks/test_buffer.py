@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from cogblocks.blocks.buffer import Buffer, ordered_window
-from cogblocks.blocks.core import Playback
+from cogblocks.amplification import Buffer
+from cogblocks.amplification.buffer import ordered_window
+from cogblocks.blocks import Playback
 from cogblocks.sim import Diagram, Simulator
 
 

@@ -4,26 +4,28 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.blocks.buffer import Buffer
-from cogblocks.blocks.core import Constant, Playback
-from cogblocks.blocks.encoding import (
+from cogblocks.amplification import (
+    Buffer,
+    EncoderClassifier,
+    EncoderNet,
+    LibraryProjector,
+    SolutionTable,
+    VelocityBlender,
+    VelocityPositionComputer,
+    load_encoder,
+    solution_table,
+)
+from cogblocks.amplification.encoder import (
     FEAR,
     NO_FEAR,
     REST_SPEED,
     UNDECIDED,
-    EncoderClassifier,
-    EncoderNet,
-    LibraryProjector,
-    PositionComputer,
-    PrefixProjection,
-    SolutionTable,
-    VelocityBlender,
     clip_decision,
-    load_encoder,
     movement_length,
     resampling_matrix,
-    solution_table,
 )
+from cogblocks.amplification.projector import PrefixProjection
+from cogblocks.blocks import Constant, Playback
 from cogblocks.data.features import classifier_inputs, resample_movement
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.sim import Diagram, Simulator
@@ -137,8 +139,9 @@ def naive_projection(library, human, count, metric):
     return no_fear[np.argmin(score[no_fear])], fear[np.argmin(score[fear])]
 
 
-@pytest.mark.parametrize("metric, dtype, capacity", [("mean", "float64", 200), ("l2", "float64", 40),
-                                                     ("mean", "float32", 25)])
+@pytest.mark.parametrize(
+    "metric, dtype, capacity", [("mean", "float64", 200), ("l2", "float64", 40), ("mean", "float32", 25)]
+)
 def test_incremental_projection_equals_naive_at_every_decision(metric, dtype, capacity):
     library = generate_reach_library(2, n_subjects=3, n_fear=20, n_no_fear=25)
     human = generate_reach_library(5, n_subjects=1, n_fear=0, n_no_fear=1).velocity[0]
@@ -176,9 +179,7 @@ def test_projector_candidates_and_validation(small):
     human = small.velocity[0]
     candidates = np.ones(len(small), dtype=bool)
     candidates[0] = False
-    trace = Simulator(projector_diagram(small, human, candidates=candidates), probes=["proj.nearest"]).run(
-        n_steps=60
-    )
+    trace = Simulator(projector_diagram(small, human, candidates=candidates), probes=["proj.nearest"]).run(n_steps=60)
     assert 0 not in trace["proj.nearest"]
     with pytest.raises(ValueError, match="e_des must be one of"):
         LibraryProjector(small, e_des=2)
@@ -187,8 +188,9 @@ def test_projector_candidates_and_validation(small):
 
 
 def test_blending_passes_through_then_follows_the_table():
-    table = SolutionTable(np.array([[0.25, 0.5], [0.75, 1.0]]), np.array([0, 2]), np.array([1, 3]), 1,
-                          np.linspace(0, 1, 5))
+    table = SolutionTable(
+        np.array([[0.25, 0.5], [0.75, 1.0]]), np.array([0, 2]), np.array([1, 3]), 1, np.linspace(0, 1, 5)
+    )
     library = generate_reach_library(4, n_subjects=1, n_fear=2, n_no_fear=2)
     library.fear[:] = [False, True, False, True]
     human = generate_reach_library(6, n_subjects=1, n_fear=0, n_no_fear=1).velocity[0]
@@ -197,9 +199,7 @@ def test_blending_passes_through_then_follows_the_table():
     d.connect("v.y", blend.v_h)
     for port in ("v_r", "nearest", "reference", "decisions"):
         d.connect(f"proj.{port}", f"blend.{port}")
-    trace = Simulator(d, probes=["blend.c", "blend.v_a", "proj.v_r", "proj.nearest", "proj.reference"]).run(
-        n_steps=120
-    )
+    trace = Simulator(d, probes=["blend.c", "blend.v_a", "proj.v_r", "proj.nearest", "proj.reference"]).run(n_steps=120)
     c = trace["blend.c"]
     assert (c[:10] == 1.0).all()
     np.testing.assert_array_equal(trace["blend.v_a"][:10], human[:10])
@@ -234,7 +234,7 @@ def test_position_integration():
     d = Diagram()
     d.add("v", Playback(v, unit="mm/s"))
     d.add("p", Playback(p_h, unit="mm"))
-    d.add("pos", PositionComputer())
+    d.add("pos", VelocityPositionComputer())
     d.connect("v.y", "pos.v")
     d.connect("p.y", "pos.p_start")
     p = Simulator(d, probes=["pos.p"]).run(n_steps=30)["pos.p"]

@@ -9,7 +9,7 @@ import pytest
 from filterpy.common import Q_continuous_white_noise
 
 from cogblocks.blocks import Playback
-from cogblocks.blocks.estimation import KalmanEstimator, fit_noise
+from cogblocks.sensing import KalmanEstimator, fit_noise
 from cogblocks.sim import Diagram, DiagramError, Simulator
 
 DT = 0.01
@@ -134,8 +134,8 @@ def test_a_real_step_is_accepted_after_max_rejections(max_rejections):
     assert not out["predicted"][rejected]
     # the replay of the rejected samples puts the estimate on the new level at once
     assert abs(out["p_hat"][rejected] - 100.0) < 10.0
-    assert np.abs(out["p_hat"][rejected + 50:] - 100.0).max() < 8.0  # 5 times the 1.5 mm filtered noise
-    assert out["predicted"][rejected + 1:].sum() <= 1
+    assert np.abs(out["p_hat"][rejected + 50 :] - 100.0).max() < 8.0  # 5 times the 1.5 mm filtered noise
+    assert out["predicted"][rejected + 1 :].sum() <= 1
 
 
 def test_without_the_gate_every_finite_sample_is_used():
@@ -150,20 +150,20 @@ def test_without_the_gate_every_finite_sample_is_used():
 def test_frozen_values_are_missing_after_freeze_frames_repeats(freeze_frames):
     z, p, _ = noisy_sinusoid(400, seed=6)
     start = 200  # z[start - 1] repeated over 20 frames through a zero crossing, with a dropout inside the run
-    z[start:start + 20] = z[start - 1]
+    z[start : start + 20] = z[start - 1]
     z[start + 10] = np.nan
     out = estimate(z, model="cv", freeze_frames=freeze_frames)
     first_missing = start - 1 + freeze_frames
     assert not out["predicted"][start:first_missing].any()
-    assert out["predicted"][first_missing:start + 20].all()
+    assert out["predicted"][first_missing : start + 20].all()
     # once confirmed, the filter rewinds: the whole run counts as missing, as with freeze_frames=1
     reference = estimate(z, model="cv", freeze_frames=1)
-    assert reference["predicted"][start:start + 20].all()
+    assert reference["predicted"][start : start + 20].all()
     for name in OUTPUTS:
         np.testing.assert_array_equal(out[name][first_missing:], reference[name][first_missing:])
     # a 200 ms prediction misses by about 0.2 s times the velocity error (sigma_v ~ 100 mm/s for cv at 2 mm)
-    assert np.abs(reference["p_hat"][start:start + 20] - p[start:start + 20]).max() < 25.0
-    assert np.abs(out["p_hat"][start + 30:] - p[start + 30:]).max() < 8.0
+    assert np.abs(reference["p_hat"][start : start + 20] - p[start : start + 20]).max() < 25.0
+    assert np.abs(out["p_hat"][start + 30 :] - p[start + 30 :]).max() < 8.0
 
 
 def test_freeze_detection_can_be_turned_off():
@@ -263,8 +263,9 @@ def test_bad_parameters_are_named(options, message):
 def simulate_model(model: str, q: float, sigma: float, n: int, seed: int) -> np.ndarray:
     """Exact samples of the continuous white-noise model every DT, plus white measurement noise."""
     order = {"cv": 2, "ca": 3}[model]
-    f = np.array([[DT ** (j - i) / math.factorial(j - i) if j >= i else 0.0 for j in range(order)]
-                  for i in range(order)])
+    f = np.array(
+        [[DT ** (j - i) / math.factorial(j - i) if j >= i else 0.0 for j in range(order)] for i in range(order)]
+    )
     chol = np.linalg.cholesky(Q_continuous_white_noise(order, DT, q))
     rng = np.random.default_rng(seed)
     w = rng.standard_normal((n, order)) @ chol.T

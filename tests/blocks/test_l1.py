@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from cogblocks.blocks import Constant, Function, Playback
-from cogblocks.blocks.estimation import KalmanEstimator
-from cogblocks.blocks.l1 import L1, KinematicPredictor
+from cogblocks.sensing import L1, KalmanEstimator, KinematicPredictor
 from cogblocks.sim import Diagram, Signal, Simulator
 
 DT = 0.01
@@ -89,12 +88,22 @@ def test_smoothing_without_delay_is_the_kalman_estimate():
     np.testing.assert_array_equal(out["l1.p_avatar"], out["l1.kalman.p_hat"])
 
 
-@pytest.mark.parametrize(("smoothing", "predicted", "base"), [
-    (True, False, "p_hat"), (True, True, "p_hat"), (False, False, "p"), (False, True, "p_hat"),
-])
+@pytest.mark.parametrize(
+    ("smoothing", "predicted", "base"),
+    [
+        (True, False, "p_hat"),
+        (True, True, "p_hat"),
+        (False, False, "p"),
+        (False, True, "p_hat"),
+    ],
+)
 def test_predictor_extrapolates_with_the_kinematic_model(smoothing, predicted, base):
-    values = {"p": ([1.0, 2.0, 3.0], "mm"), "p_hat": ([1.5, 2.5, 3.5], "mm"),
-              "v_hat": ([10.0, -20.0, 0.0], "mm/s"), "a_hat": ([100.0, 0.0, -50.0], "mm/s^2")}
+    values = {
+        "p": ([1.0, 2.0, 3.0], "mm"),
+        "p_hat": ([1.5, 2.5, 3.5], "mm"),
+        "v_hat": ([10.0, -20.0, 0.0], "mm/s"),
+        "a_hat": ([100.0, 0.0, -50.0], "mm/s^2"),
+    }
     d = Diagram()
     pred = d.add("pred", KinematicPredictor(0.2, smoothing=smoothing))
     for name, (value, unit) in values.items():

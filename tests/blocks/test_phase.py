@@ -7,8 +7,8 @@ import pytest
 
 from cogblocks.blocks import Playback, Probe
 from cogblocks.blocks.angles import TWO_PI, wrap_pi
-from cogblocks.blocks.phase import Algorithm1Phase, PhaseEstimator, hilbert_phase
 from cogblocks.data.oscillation import generate_oscillation
+from cogblocks.phase import Algorithm1Phase, PhaseEstimator, hilbert_phase
 from cogblocks.sim import Diagram, DiagramError, Simulator
 
 DT = 0.01
@@ -180,7 +180,7 @@ def test_acceleration_check_rejects_an_inflection_plateau():
     tau = t[431:] - 4.56
     p[431:] = 60.0 - 40.0 * np.sign(tau) * np.abs(tau / 0.25) ** 3  # from 100 down to the plateau at 60, and on
     k = 456
-    p[k + 1:] = p[k:-1].copy()  # repeat the plateau sample: v = 0 exactly
+    p[k + 1 :] = p[k:-1].copy()  # repeat the plateau sample: v = 0 exactly
     _, amp_default = run_leaf(p)
     _, amp_one_step = run_leaf(p, accel_window=0.0)
     assert amp_default[k - 5, 0] == pytest.approx(100.0, abs=2.0)  # the maximum, less the centre

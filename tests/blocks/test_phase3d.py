@@ -6,17 +6,17 @@ from scipy.spatial.transform import Rotation
 
 from cogblocks.blocks import Playback, Probe
 from cogblocks.blocks.angles import wrap_pi
-from cogblocks.blocks.phase3d import (
+from cogblocks.data.motion3d import generate_motion3d, reference_primitive
+from cogblocks.phase import (
     PeriodEstimator,
     PhaseComputer,
     PhaseEstimator3D,
-    PositionComputer,
+    PhasePositionComputer,
     ReferenceCustomizer,
     customize_reference,
     kabsch_rotation,
     offline_phase_pca_hilbert,
 )
-from cogblocks.data.motion3d import generate_motion3d, reference_primitive
 from cogblocks.sim import Block, Diagram, DiagramError, Signal, Simulator
 
 TWO_PI = 2 * np.pi
@@ -245,7 +245,7 @@ def test_position_computer_index_rule():
     n = 8
     reference = np.arange(3 * n, dtype=float).reshape(n, 3)
     theta = TWO_PI * np.array([0.0, 2.49, 2.51, 7.4, 7.6, 7.999]) / n
-    _, p = position_run(theta, PositionComputer(reference))
+    _, p = position_run(theta, PhasePositionComputer(reference))
     np.testing.assert_array_equal(p, reference[[0, 2, 3, 7, 0, 0]])
 
 
@@ -254,7 +254,7 @@ def test_position_computer_reference_input_overrides_the_default():
     d = Diagram()
     d.add("theta", Playback(np.full(3, np.pi), unit="rad"))
     d.add("ref", Playback(np.repeat(reference[None] + 100.0, 3, axis=0), unit="mm"))
-    d.add("pos", PositionComputer(reference))
+    d.add("pos", PhasePositionComputer(reference))
     d.connect("theta.y", "pos.theta")
     d.connect("ref.y", "pos.reference")
     p = Simulator(d, probes=["pos.p"]).run(n_steps=3)["pos.p"]
@@ -264,14 +264,14 @@ def test_position_computer_reference_input_overrides_the_default():
 def test_position_noise_is_seeded_and_snapshotted():
     reference = reference_primitive(200)
     theta = np.mod(0.05 * np.arange(40), TWO_PI)
-    _, a = position_run(theta, PositionComputer(reference, noise_std=1.0, seed=7))
-    _, b = position_run(theta, PositionComputer(reference, noise_std=1.0, seed=7))
-    _, c = position_run(theta, PositionComputer(reference, noise_std=1.0, seed=8))
+    _, a = position_run(theta, PhasePositionComputer(reference, noise_std=1.0, seed=7))
+    _, b = position_run(theta, PhasePositionComputer(reference, noise_std=1.0, seed=7))
+    _, c = position_run(theta, PhasePositionComputer(reference, noise_std=1.0, seed=8))
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
     noise = a - reference[np.floor(200 * theta / TWO_PI + 0.5).astype(int) % 200]
     assert 0.5 < noise.std() < 1.5
-    sim, _ = position_run(theta, PositionComputer(reference, noise_std=1.0, seed=7), n_steps=10)
+    sim, _ = position_run(theta, PhasePositionComputer(reference, noise_std=1.0, seed=7), n_steps=10)
     snapshot = sim.state_dict()
     later = sim.run(n_steps=10)["out"]
     sim.load_state_dict(snapshot)
@@ -314,7 +314,10 @@ def test_motion_generator_is_seeded():
         (lambda: PhaseComputer(window=0), r"window must be an integer >= 1"),
         (lambda: ReferenceCustomizer(np.zeros((5, 2))), r"ReferenceCustomizer: reference must have shape \(any, 3\)"),
         (lambda: PhaseEstimator3D([[1.0, 2.0, np.nan]] * 4), r"reference must contain only finite numbers"),
-        (lambda: PositionComputer(np.zeros((4, 3)), noise_std=-1), r"noise_std must be a finite number in \[0.0, inf"),
+        (
+            lambda: PhasePositionComputer(np.zeros((4, 3)), noise_std=-1),
+            r"noise_std must be a finite number in \[0.0, inf",
+        ),
         (lambda: customize_reference(np.zeros((5, 3)), np.zeros((1, 3))), r"period must have at least 2 samples"),
         (lambda: offline_phase_pca_hilbert(reference_primitive(200)[:150]), r"at least one full cycle"),
         (lambda: generate_motion3d(noise_mm=-1.0), r"generate_motion3d: noise_mm must be a finite number in \[0.0"),

@@ -4,11 +4,10 @@ import numpy as np
 import pytest
 
 from cogblocks.blocks.angles import TWO_PI, wrap_pi
-from cogblocks.blocks.estimation import KalmanEstimator
-from cogblocks.blocks.phase import Algorithm1Phase, PhaseEstimator
-from cogblocks.blocks.phase3d import PhaseEstimator3D
 from cogblocks.data.motion3d import generate_motion3d
 from cogblocks.data.oscillation import generate_oscillation
+from cogblocks.phase import Algorithm1Phase, PhaseEstimator, PhaseEstimator3D
+from cogblocks.sensing import KalmanEstimator
 from cogblocks.sim import Simulator
 
 DT = 0.01
@@ -63,8 +62,10 @@ def test_noisy_signal_with_dropouts_and_nan_gives_no_nan():
     err = np.abs(wrap_pi(theta - osc.phase))[keep]
     low, _, _ = run_estimator(osc.position)
     err_low = np.abs(wrap_pi(low - osc.phase))[keep]
-    print(f"seed 2, 30 s: error vs true phase, Kalman {err.mean():.3f} (p95 {np.percentile(err, 95):.3f}) rad, "
-          f"low-pass {err_low.mean():.3f} (p95 {np.percentile(err_low, 95):.3f}) rad")
+    print(
+        f"seed 2, 30 s: error vs true phase, Kalman {err.mean():.3f} (p95 {np.percentile(err, 95):.3f}) rad, "
+        f"low-pass {err_low.mean():.3f} (p95 {np.percentile(err_low, 95):.3f}) rad"
+    )
     # benchmarks/phase1d_accuracy.py over 20 signals: 0.12 rad mean, 0.31 rad p95 (low-pass 0.09 and 0.23)
     assert err.mean() < 0.25 and np.percentile(err, 95) < 0.6
 

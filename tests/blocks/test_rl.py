@@ -4,19 +4,18 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.blocks.core import Playback
-from cogblocks.blocks.encoding import EncoderNet, solution_table
-from cogblocks.blocks.rl import (
-    ACTIONS,
+from cogblocks.amplification import (
     CorrectorNet,
+    EncoderNet,
+    L2Amplification,
     NoCorrection,
     RLCorrector,
     load_corrector,
-    reward_constants,
-    step_reward,
+    solution_table,
 )
+from cogblocks.amplification.corrector import ACTIONS, reward_constants, step_reward
+from cogblocks.blocks import Playback
 from cogblocks.data.reach import generate_reach_library
-from cogblocks.diagrams.amplification import L2Amplification
 from cogblocks.sim import Diagram, Simulator
 from cogblocks.training.amplification_env import AmplificationEnv, record_episodes
 from cogblocks.training.corrector import CorrectorConfig, evaluate, train

@@ -6,12 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.blocks.encoding import PositionComputer
-from cogblocks.blocks.rl import NoCorrection, RLCorrector
+from cogblocks.amplification import L2Amplification, NoCorrection, RLCorrector, VelocityPositionComputer
 from cogblocks.cli import main
 from cogblocks.diagrams.amplification import (
     PAPER,
-    L2Amplification,
     amplification_setup,
     plot_amplification,
     pop_amplification,
@@ -29,8 +27,9 @@ def setup():
 
 def replay(setup, index, **kwargs):
     lib = setup.library
-    return pop_amplification((lib.velocity[index], lib.position[index]), setup.movements, table=setup.table,
-                             encoder=setup.encoder, **kwargs)
+    return pop_amplification(
+        (lib.velocity[index], lib.position[index]), setup.movements, table=setup.table, encoder=setup.encoder, **kwargs
+    )
 
 
 def test_the_diagram_runs_and_blends(setup):
@@ -55,15 +54,20 @@ def test_corrector_is_swappable(setup):
     trace = Simulator(d, probes=["l2.alpha"]).run(n_steps=200)
     assert (trace["l2.alpha"][:10] == 0).all()
     with pytest.raises(DiagramError, match="cannot replace"):
-        d.replace("l2.corrector", PositionComputer())
+        d.replace("l2.corrector", VelocityPositionComputer())
 
 
 def test_removing_fear_swaps_the_roles(setup):
     fear_val = setup.val[setup.library.fear[setup.val]]
     table = amplification_setup(None, 0).table
     lib = setup.library
-    d = pop_amplification((lib.velocity[fear_val[0]], lib.position[fear_val[0]]), setup.movements, table=table,
-                          encoder=setup.encoder, e_des=0)
+    d = pop_amplification(
+        (lib.velocity[fear_val[0]], lib.position[fear_val[0]]),
+        setup.movements,
+        table=table,
+        encoder=setup.encoder,
+        e_des=0,
+    )
     trace = Simulator(d, probes={"reference": "l2.reference", "nearest": "l2.nearest"}).run(n_steps=60)
     assert not setup.movements.fear[int(trace["reference"][-1])]
     assert setup.movements.fear[int(trace["nearest"][-1])]
@@ -87,6 +91,7 @@ def test_cli_json_and_plot(capsys, tmp_path, monkeypatch):
 
     # the full validation set is the example's and the docs' job: a few movements are enough here
     full = amplification.run_amplification
+
     def few(variants=("blend", "blend_rl", "optimised")):
         return full(variants, limit=4)
 

@@ -11,8 +11,15 @@ def test_kalman_front_end_estimates_the_human_velocity_from_positions():
     setup = amplification_setup(None, 1)
     index = int(setup.humans[0])
     velocity, position = setup.library.velocity[index], setup.library.position[index]
-    d = pop_amplification((velocity, position), setup.movements, table=setup.table, encoder=setup.encoder,
-                          front_end="kalman", noise_mm=1.0, seed=3)
+    d = pop_amplification(
+        (velocity, position),
+        setup.movements,
+        table=setup.table,
+        encoder=setup.encoder,
+        front_end="kalman",
+        noise_mm=1.0,
+        seed=3,
+    )
     trace = Simulator(d).run(n_steps=setup.library.max_len)
     length = int(setup.library.length[index])
     # after a short warm-up the estimated velocity follows the recorded one within a fraction of its peak

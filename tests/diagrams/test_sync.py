@@ -5,12 +5,13 @@ import json
 import numpy as np
 import pytest
 
-from cogblocks.blocks import Blender, MotionComputer, Playback, Probe
-from cogblocks.blocks.motion import ACTIONS, MeanPhaseMotion, l3_observation
+from cogblocks.blocks import Playback, Probe
 from cogblocks.cli import main
 from cogblocks.data.groups import TABLE2
-from cogblocks.diagrams.sync import L2Sync, pop_sync, run_sync
+from cogblocks.diagrams.sync import pop_sync, run_sync
 from cogblocks.sim import Diagram, DiagramError, Simulator
+from cogblocks.sync import Blender, L2Sync, MeanPhaseMotion, MotionComputer
+from cogblocks.sync.motion import ACTIONS, l3_observation
 
 
 def reference_closed_loop(group, n_steps, reference):
@@ -165,7 +166,7 @@ def test_position_domain_estimates_phases_from_arm_positions():
 
 
 def test_arm_positions_block():
-    from cogblocks.blocks import ArmPositions
+    from cogblocks.sync import ArmPositions
 
     with pytest.raises(ValueError, match="ArmPositions: amplitude must be > 0"):
         ArmPositions(3, amplitude=[1.0, 0.0, 1.0])
@@ -186,7 +187,7 @@ def test_trained_and_model_based_policies_beat_the_deliverable_on_group_1():
 
 
 def test_diagram_with_dqn_policy_matches_the_training_environment():
-    from cogblocks.training.l3_policies import DQNPolicy
+    from cogblocks.sync import DQNPolicy
     from cogblocks.training.sync_env import evaluate
 
     env_result = evaluate(DQNPolicy.default(), TABLE2[1])

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from cogblocks.blocks.angles import wrap_pi
-from cogblocks.blocks.estimation import KalmanEstimator
 from cogblocks.diagrams.sync import pop_sync
+from cogblocks.sensing import KalmanEstimator
 from cogblocks.sim import Simulator
 
 

@@ -24,7 +24,6 @@ Blocks are found through ``FACTORIES`` (block class -> valid instances, how to f
 
 from __future__ import annotations
 
-import importlib
 import inspect
 import math
 import re
@@ -38,43 +37,45 @@ import pytest
 from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
-import cogblocks.blocks.catalogue as catalogue
+import cogblocks.catalogue as catalogue
 from cogblocks.blocks import (
-    L1,
-    Algorithm1Phase,
-    ArmPositions,
     BackwardDifference,
-    Blender,
     Constant,
     Demux,
     DiscreteLTI,
     Function,
     Gain,
     Integrator,
-    KalmanEstimator,
-    KinematicPredictor,
-    KuramotoGroup,
-    KuramotoOscillator,
     LowPass,
-    MeanPhaseMotion,
-    MotionComputer,
     Mux,
-    OrderParameter,
-    PeriodEstimator,
-    PhaseComputer,
-    PhaseEstimator,
-    PhaseEstimator3D,
     Playback,
     Probe,
-    ReferenceCustomizer,
     Saturation,
     Select,
     Substitute,
     Sum,
     UnitDelay,
 )
-from cogblocks.blocks import PositionComputer as PhasePositionComputer
+from cogblocks.phase import (
+    Algorithm1Phase,
+    PeriodEstimator,
+    PhaseComputer,
+    PhaseEstimator,
+    PhaseEstimator3D,
+    PhasePositionComputer,
+    ReferenceCustomizer,
+)
+from cogblocks.sensing import L1, KalmanEstimator, KinematicPredictor
 from cogblocks.sim import Diagram, Signal, SimulationError
+from cogblocks.sync import (
+    ArmPositions,
+    Blender,
+    KuramotoGroup,
+    KuramotoOscillator,
+    MeanPhaseMotion,
+    MotionComputer,
+    OrderParameter,
+)
 
 TWO_PI = 2.0 * math.pi
 TICKS = st.integers(20, 40)  # a few dozen ticks: filters start, frozen runs get confirmed
@@ -589,7 +590,7 @@ register(
 
 @st.composite
 def stable_blender(draw):
-    from cogblocks.analysis.stability import check_blender
+    from cogblocks.sync import check_blender
 
     lam_min = draw(st.floats(0.05, 1.0))
     kw = {
@@ -686,7 +687,7 @@ def check_l2_sync(block, k, ins, outs, previous, seen):
 
 @st.composite
 def l2_sync(draw):
-    from cogblocks.diagrams.sync import L2Sync
+    from cogblocks.sync import L2Sync
 
     if draw(st.booleans()):
         motion = draw(motion_computer())
@@ -697,7 +698,7 @@ def l2_sync(draw):
 
 
 def register_l2_sync() -> None:
-    from cogblocks.diagrams.sync import L2Sync
+    from cogblocks.sync import L2Sync
 
     register(
         L2Sync,
@@ -878,6 +879,8 @@ register(
     # a bad sample gives a bad velocity inside, on which the phase computer holds (checked on its own)
     Policy(check=check_held_at_zero),
 )
+
+
 def selected_sample(block, ins):
     """The reference sample the phase selects: index round(N θ / 2π) mod N, halves up."""
     n = block.n_samples
@@ -939,7 +942,7 @@ def usable(value) -> bool:
 
 def check_classifier_holds(block, k, ins, outs, previous, seen):
     """A window with a sample that is not usable is not classified: every output holds."""
-    from cogblocks.blocks.buffer import ordered_window
+    from cogblocks.amplification.buffer import ordered_window
 
     check_classifier(block, k, ins, outs, previous, seen)
     if not usable(ordered_window(ins["velocity"], int(ins["count"]))):
@@ -979,37 +982,32 @@ def check_buffer(block, k, ins, outs, previous, seen):
 
 
 def register_amplification() -> None:
-    try:
-        buffer = importlib.import_module("cogblocks.blocks.buffer")
-        encoding = importlib.import_module("cogblocks.blocks.encoding")
-        rl = importlib.import_module("cogblocks.blocks.rl")
-    except ImportError:  # pragma: no cover - not written yet
-        return
     import torch
 
+    import cogblocks.amplification as amp
     from cogblocks.data.reach import generate_reach_library
 
     library = generate_reach_library(1, n_subjects=2, n_fear=5, n_no_fear=6)
     torch.manual_seed(0)
-    network = encoding.EncoderNet(hidden=8).double().eval()
-    table = encoding.solution_table(network, library, cache_dir=None)
-    corrector = rl.load_corrector()
+    network = amp.EncoderNet(hidden=8).double().eval()
+    table = amp.solution_table(network, library, cache_dir=None)
+    corrector = amp.load_corrector()
 
     def buffer_count(n):  # the buffer's count: one more sample every tick
         return st.just(np.arange(1, n + 1, dtype=np.int64))
 
     register(
-        buffer.Buffer,
-        st.builds(buffer.Buffer, st.integers(1, 30)),
+        amp.Buffer,
+        st.builds(amp.Buffer, st.integers(1, 30)),
         lambda b: {"v": floats((3,), "mm/s", scale=500.0), "p": floats((3,), "mm", scale=150.0)},
         ["v", "p"],
         # "a sample with a non-finite or implausible element is stored as the last good one (zeros before any)"
         Policy(check=check_buffer),
     )
     register(
-        encoding.EncoderClassifier,
+        amp.EncoderClassifier,
         generic(
-            st.builds(encoding.EncoderClassifier, st.just(network), rest_speed=st.floats(0.0, 10.0)),
+            st.builds(amp.EncoderClassifier, st.just(network), rest_speed=st.floats(0.0, 10.0)),
             st.integers(1, 40).map(lambda c: (c, 3)),
         ),
         lambda b: {"velocity": floats(b.test_shape, "mm/s", scale=500.0), "count": ints(buffer_count)},
@@ -1020,7 +1018,7 @@ def register_amplification() -> None:
 
     @st.composite
     def projector(draw):
-        block = encoding.LibraryProjector(
+        block = amp.LibraryProjector(
             library,
             e_des=draw(st.sampled_from([0, 1])),
             interval=draw(st.integers(1, 10)),
@@ -1030,7 +1028,7 @@ def register_amplification() -> None:
         return fed_as(block, (draw(st.integers(block.interval, 40)), 3))
 
     register(
-        encoding.LibraryProjector,
+        amp.LibraryProjector,
         projector(),
         lambda b: {"velocity": floats(b.test_shape, "mm/s", scale=500.0), "count": ints(buffer_count)},
         ["velocity"],
@@ -1057,8 +1055,8 @@ def register_amplification() -> None:
         }
 
     register(
-        encoding.VelocityBlender,
-        st.builds(encoding.VelocityBlender, st.just(table)),
+        amp.VelocityBlender,
+        st.builds(amp.VelocityBlender, st.just(table)),
         blending_feeds,
         ["v_h", "v_r", "v_u"],
         # "a non-finite v_h or v_u, or a non-finite v_r while it is weighted (c < 1), gives a non-finite v_a"
@@ -1066,16 +1064,14 @@ def register_amplification() -> None:
         couple_velocity_blender,
     )
     register(
-        encoding.PositionComputer,
-        st.builds(encoding.PositionComputer),
+        amp.VelocityPositionComputer,
+        st.builds(amp.VelocityPositionComputer),
         lambda b: {"v": floats((3,), "mm/s", scale=500.0), "p_start": floats((3,), "mm", scale=150.0)},
         ["v", "p_start"],
         # "a non-finite or implausible velocity holds the position; integration starts at the first p_start that
         # is finite and plausible"
         Policy(
-            holds={
-                "p": lambda block, ins, seen: not usable(ins["v"]) and any(usable(i["p_start"]) for i in seen[:-1])
-            }
+            holds={"p": lambda block, ins, seen: not usable(ins["v"]) and any(usable(i["p_start"]) for i in seen[:-1])}
         ),
     )
     corrector_feeds = {
@@ -1085,18 +1081,17 @@ def register_amplification() -> None:
         "v_a": floats((3,), "mm/s", scale=500.0),
         "horizon": ints(lambda n: int_list(n, 0, 200)),
     }
-    register(rl.NoCorrection, st.builds(rl.NoCorrection), lambda b: corrector_feeds, ["p_h", "p_a", "v_h", "v_a"])
+    register(amp.NoCorrection, st.builds(amp.NoCorrection), lambda b: corrector_feeds, ["p_h", "p_a", "v_h", "v_a"])
     register(
-        rl.RLCorrector,
-        st.builds(rl.RLCorrector, st.just(corrector), gain=st.floats(0.1, 20.0), interval=st.integers(1, 10)),
+        amp.RLCorrector,
+        st.builds(amp.RLCorrector, st.just(corrector), gain=st.floats(0.1, 20.0), interval=st.integers(1, 10)),
         lambda b: corrector_feeds,
         ["p_h", "p_a", "v_h", "v_a"],
         # "a non-finite or implausible position keeps the last stored difference; such a state keeps the last action"
         Policy(check=check_corrector),
     )
 
-    from cogblocks.analysis.optimal_blending import OptimalBlender
-    from cogblocks.diagrams.amplification import L2Amplification
+    from cogblocks.amplification import L2Amplification, OptimalBlender
 
     @st.composite
     def l2_amplification(draw):
@@ -1105,7 +1100,7 @@ def register_amplification() -> None:
         return L2Amplification(
             library,
             table,
-            corrector=rl.RLCorrector(corrector) if corrector_block else None,
+            corrector=amp.RLCorrector(corrector) if corrector_block else None,
             interval=draw(st.integers(1, 10)),
             capacity=capacity,
         )

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from cogblocks.blocks.catalogue import public_blocks
+from cogblocks.catalogue import public_blocks
 from cogblocks.sim import Signal
 
 
@@ -41,13 +41,13 @@ def _tiny_library():
 
 
 def _tiny_network():
-    from cogblocks.blocks.encoding import EncoderNet
+    from cogblocks.amplification import EncoderNet
 
     return EncoderNet(hidden=4).double().eval()
 
 
 def _tiny_table():
-    from cogblocks.blocks.encoding import SolutionTable
+    from cogblocks.amplification import SolutionTable
 
     return SolutionTable(np.ones((2, 2)), np.array([0, 1]), np.array([2, 3]), 1, np.linspace(0, 1, 5))
 
@@ -58,7 +58,7 @@ class _Policy:
 
 
 def _mean_motion():
-    from cogblocks.blocks import MeanPhaseMotion
+    from cogblocks.sync import MeanPhaseMotion
 
     return MeanPhaseMotion(3, 1)
 
@@ -90,13 +90,13 @@ BASES: dict[str, Callable[[], dict[str, Any]]] = {
     "MotionComputer": lambda: {"policy": _Policy(), "n": 3, "assisted": 0, "gain": 1.0, "omega_init": 0.0},
     "ReferenceCustomizer": lambda: {"reference": CURVE},
     "PhaseEstimator3D": lambda: {"reference": CURVE},
-    "PositionComputer": lambda: {"reference": CURVE},
+    "PhasePositionComputer": lambda: {"reference": CURVE},
     "EncoderClassifier": lambda: {"network": _tiny_network()},
     "LibraryProjector": lambda: {"library": _tiny_library()},
     "VelocityBlender": lambda: {"table": _tiny_table()},
-    "sync.L2Sync": lambda: {"motion": _mean_motion(), "assisted": 1},
-    "amplification.L2Amplification": lambda: {"library": _tiny_library(), "table": _tiny_table()},
-    "optimal_blending.OptimalBlender": lambda: {"library": _tiny_library(), "network": _tiny_network()},
+    "L2Sync": lambda: {"motion": _mean_motion(), "assisted": 1},
+    "L2Amplification": lambda: {"library": _tiny_library(), "table": _tiny_table()},
+    "OptimalBlender": lambda: {"library": _tiny_library(), "network": _tiny_network()},
 }
 
 # Parameters documented as passed through to an inner block, whose message may name that block.
@@ -109,7 +109,7 @@ PASS_THROUGH: dict[str, dict[str, str]] = {
     )
     | dict.fromkeys(("search", "window", "jump_factor", "distance_floor", "velocity_weight"), "PhaseComputer"),
     "LibraryProjector": dict.fromkeys(("metric", "dtype"), "PrefixProjection"),
-    "amplification.L2Amplification": {"candidates": "LibraryProjector"},
+    "L2Amplification": {"candidates": "LibraryProjector"},
 }
 
 
@@ -277,9 +277,9 @@ CASES = [
     case("PhaseEstimator3D", "jump_factor", 0.5, "(1.0, inf)"),
     case("PhaseEstimator3D", "distance_floor", -1.0, "[0.0, inf)"),
     case("PhaseEstimator3D", "velocity_weight", -1.0, "[0.0, inf)"),
-    case("PositionComputer", "reference", [[0.0, 0.0]], "shape (any, 3)", given="(1, 2)"),
-    case("PositionComputer", "noise_std", -1.0, "[0.0, inf)"),
-    case("PositionComputer", "seed", "abc", "int"),
+    case("PhasePositionComputer", "reference", [[0.0, 0.0]], "shape (any, 3)", given="(1, 2)"),
+    case("PhasePositionComputer", "noise_std", -1.0, "[0.0, inf)"),
+    case("PhasePositionComputer", "seed", "abc", "int"),
     # PoP of Amplification
     case("Buffer", "capacity", 0, "integer >= 1"),
     case("EncoderClassifier", "network", 5, "EncoderNet", given="int"),
@@ -295,32 +295,32 @@ CASES = [
     case("RLCorrector", "gain", 0.0, "(0.0, inf)"),
     case("RLCorrector", "interval", 0, "integer >= 1"),
     # the L2 architectures as blocks
-    case("sync.L2Sync", "motion", 5, "inputs ['theta', 'lam'] and outputs ['theta_ref']", given="int"),
-    case("sync.L2Sync", "assisted", -1, "integer >= 0"),
-    case("sync.L2Sync", "assisted", 0, "assisted index 1"),
-    case("sync.L2Sync", "blender", 5, "outputs ['theta_l2', 'lam']", given="int"),
-    case("amplification.L2Amplification", "library", 5, "ReachLibrary", given="int"),
-    case("amplification.L2Amplification", "table", 5, "SolutionTable for e_des=1", given="int"),
-    case("amplification.L2Amplification", "corrector", 5, "outputs ['v_u', 'alpha']", given="int"),
-    case("amplification.L2Amplification", "blending", 5, "outputs ['v_a', 'c']", given="int"),
-    case("amplification.L2Amplification", "e_des", 2, "one of [0, 1]"),
-    case("amplification.L2Amplification", "interval", 300, "[1, capacity=200]"),
-    case("amplification.L2Amplification", "capacity", 0, "integer >= 1"),
-    case("amplification.L2Amplification", "candidates", [True], "shape (6,)", given="(1,)"),
+    case("L2Sync", "motion", 5, "inputs ['theta', 'lam'] and outputs ['theta_ref']", given="int"),
+    case("L2Sync", "assisted", -1, "integer >= 0"),
+    case("L2Sync", "assisted", 0, "assisted index 1"),
+    case("L2Sync", "blender", 5, "outputs ['theta_l2', 'lam']", given="int"),
+    case("L2Amplification", "library", 5, "ReachLibrary", given="int"),
+    case("L2Amplification", "table", 5, "SolutionTable for e_des=1", given="int"),
+    case("L2Amplification", "corrector", 5, "outputs ['v_u', 'alpha']", given="int"),
+    case("L2Amplification", "blending", 5, "outputs ['v_a', 'c']", given="int"),
+    case("L2Amplification", "e_des", 2, "one of [0, 1]"),
+    case("L2Amplification", "interval", 300, "[1, capacity=200]"),
+    case("L2Amplification", "capacity", 0, "integer >= 1"),
+    case("L2Amplification", "candidates", [True], "shape (6,)", given="(1,)"),
     # optimisation-based blending
-    case("optimal_blending.OptimalBlender", "library", 5, "ReachLibrary", given="int"),
-    case("optimal_blending.OptimalBlender", "network", 5, "EncoderNet", given="int"),
-    case("optimal_blending.OptimalBlender", "table", 5, "SolutionTable for e_des=1", given="int"),
-    case("optimal_blending.OptimalBlender", "e_des", -1, "one of [0, 1]"),
-    case("optimal_blending.OptimalBlender", "margin", 0.5, "[0.0, 0.09"),
-    case("optimal_blending.OptimalBlender", "delta_pos", 0.0, "(0.0, inf)"),
-    case("optimal_blending.OptimalBlender", "terminal_margin", 25.0, "[0.0, 20.0)"),
-    case("optimal_blending.OptimalBlender", "end_speed", -1.0, "[0.0, inf)"),
-    case("optimal_blending.OptimalBlender", "knot_spacing", 0, "integer >= 1"),
-    case("optimal_blending.OptimalBlender", "time_limit_ms", 0.0, "(0.0, inf)"),
-    case("optimal_blending.OptimalBlender", "solver", "bonmin", "one of ['sqpmethod', 'ipopt']"),
-    case("optimal_blending.OptimalBlender", "sharpness", math.inf, "(0.0, inf)"),
-    case("optimal_blending.OptimalBlender", "rest_speed", -1.0, "[0.0, inf)"),
+    case("OptimalBlender", "library", 5, "ReachLibrary", given="int"),
+    case("OptimalBlender", "network", 5, "EncoderNet", given="int"),
+    case("OptimalBlender", "table", 5, "SolutionTable for e_des=1", given="int"),
+    case("OptimalBlender", "e_des", -1, "one of [0, 1]"),
+    case("OptimalBlender", "margin", 0.5, "[0.0, 0.09"),
+    case("OptimalBlender", "delta_pos", 0.0, "(0.0, inf)"),
+    case("OptimalBlender", "terminal_margin", 25.0, "[0.0, 20.0)"),
+    case("OptimalBlender", "end_speed", -1.0, "[0.0, inf)"),
+    case("OptimalBlender", "knot_spacing", 0, "integer >= 1"),
+    case("OptimalBlender", "time_limit_ms", 0.0, "(0.0, inf)"),
+    case("OptimalBlender", "solver", "bonmin", "one of ['sqpmethod', 'ipopt']"),
+    case("OptimalBlender", "sharpness", math.inf, "(0.0, inf)"),
+    case("OptimalBlender", "rest_speed", -1.0, "[0.0, inf)"),
 ]
 
 

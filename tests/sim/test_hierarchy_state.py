@@ -6,8 +6,9 @@ import sys
 import numpy as np
 import pytest
 
-from cogblocks.blocks import Gain, Integrator, KuramotoGroup, LowPass, OrderParameter, Playback, Probe, Sum
+from cogblocks.blocks import Gain, Integrator, LowPass, Playback, Probe, Sum
 from cogblocks.sim import Block, Diagram, DiagramError, Signal, Simulator, Trace
+from cogblocks.sync import KuramotoGroup, OrderParameter
 
 OMEGA = [2.7151, 2.9299, 4.0344, 2.1476, 3.9117, 3.7429, 3.2827]
 
@@ -259,7 +260,7 @@ def test_progress_bar_shows_in_a_terminal_without_ci():
     import pty
 
     code = (
-        "from cogblocks.blocks import KuramotoGroup\n"
+        "from cogblocks.sync import KuramotoGroup\n"
         "from cogblocks.sim import Diagram, Simulator\n"
         "d = Diagram(); d.add('g', KuramotoGroup([1.0, 2.0], 1.0))\n"
         "Simulator(d).run(n_steps=30000)\n"

@@ -27,9 +27,7 @@ def test_update_regresses_on_the_td_target_and_terminal_stops_bootstrapping():
     torch.manual_seed(0)
     learner = DQNLearner(nn.Linear(2, 3), learning_rate=0.0, max_grad_norm=1.0)
     obs = torch.tensor([[1.0, 0.0], [0.0, 1.0]])
-    batch_args = dict(
-        obs=obs, actions=torch.tensor([0, 2]), rewards=torch.tensor([1.0, -1.0]), next_obs=obs.flip(0)
-    )
+    batch_args = dict(obs=obs, actions=torch.tensor([0, 2]), rewards=torch.tensor([1.0, -1.0]), next_obs=obs.flip(0))
     with torch.no_grad():
         q_next = learner.target(obs.flip(0)).max(dim=1).values
         q = learner.online(obs)[[0, 1], [0, 2]]

@@ -10,14 +10,24 @@ import pytest
 import torch
 
 from cogblocks.data.groups import TABLE2, TABLE3_CHANGE_PCT
-from cogblocks.training.l3_policies import ACTIONS, DQNPolicy, L3QNetwork, LookaheadPolicy
+from cogblocks.sync import DQNPolicy, LookaheadPolicy
+from cogblocks.sync.dqn_policy import L3QNetwork
+from cogblocks.sync.motion import ACTIONS, HOLD_ACTION
 from cogblocks.training.sync_dqn import DQNConfig, train
-from cogblocks.training.sync_env import HOLD_ACTION, SyncEnv, evaluate
+from cogblocks.training.sync_env import SyncEnv, evaluate
 
 torch.set_num_threads(1)  # tiny networks: threads only add contention on a shared machine
 
-TINY_CONFIG = DQNConfig(episodes=2, copies=1, episode_seconds=1.0, learning_starts=64, batch_size=32,
-                        buffer_size=2_000, train_every=1, target_every=20)
+TINY_CONFIG = DQNConfig(
+    episodes=2,
+    copies=1,
+    episode_seconds=1.0,
+    learning_starts=64,
+    batch_size=32,
+    buffer_size=2_000,
+    train_every=1,
+    target_every=20,
+)
 
 
 def test_action_set() -> None:
@@ -90,8 +100,7 @@ def test_lookahead_meets_target_on_group1() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("group_number", [2, 3])
 def test_lookahead_meets_target_on_300s_groups(group_number: int) -> None:
-    _assert_beats_table3(evaluate(LookaheadPolicy.for_group(TABLE2[group_number]), TABLE2[group_number]),
-                         group_number)
+    _assert_beats_table3(evaluate(LookaheadPolicy.for_group(TABLE2[group_number]), TABLE2[group_number]), group_number)
 
 
 def test_lookahead_rejects_batched_models() -> None:

@@ -8,19 +8,12 @@ import math
 import numpy as np
 import pytest
 
+from cogblocks.blocks.angles import wrap_pi
 from cogblocks.data.groups import TABLE2, SyncGroup
-from cogblocks.training.sync_env import (
-    ACTIONS,
-    HOLD_ACTION,
-    SyncEnv,
-    SyncModel,
-    evaluate,
-    l3_observation,
-    order_parameter_without_l2,
-    ring_adjacency,
-    wrap,
-    wrap_pi,
-)
+from cogblocks.sync import SyncModel, ring_adjacency
+from cogblocks.sync.model import wrap
+from cogblocks.sync.motion import ACTIONS, HOLD_ACTION, l3_observation
+from cogblocks.training.sync_env import SyncEnv, evaluate, order_parameter_without_l2
 
 
 def reference_loop(group: SyncGroup, actions: np.ndarray, l2: bool) -> dict[str, np.ndarray]:
@@ -58,9 +51,12 @@ def reference_loop(group: SyncGroup, actions: np.ndarray, l2: bool) -> dict[str,
             break
         omega_l3 = min(max(omega_l3 + ACTIONS[actions[k]], -15.0), 15.0)
         pull_l3 = sum(math.sin(theta[j] - theta_l3) for j in neighbours[a])
-        theta = [to_2pi(theta[i] + dt * (group.omega[i] + group.gain * sum(math.sin(seen[j] - seen[i])
-                                                                            for j in neighbours[i])))
-                 for i in range(n)]
+        theta = [
+            to_2pi(
+                theta[i] + dt * (group.omega[i] + group.gain * sum(math.sin(seen[j] - seen[i]) for j in neighbours[i]))
+            )
+            for i in range(n)
+        ]
         theta_l3 = to_2pi(theta_l3 + dt * (omega_l3 + group.gain * pull_l3))
         if l2:
             lam = lam_next
@@ -72,8 +68,14 @@ def run_env(env: SyncEnv, actions: np.ndarray) -> dict[str, np.ndarray]:
     out: dict[str, list] = {key: [] for key in ("theta", "theta_l3", "lam", "r", "obs", "alteration")}
     env.reset()
     for k in range(len(actions) + 1):
-        for key, value in (("theta", env.theta), ("theta_l3", env.theta_l3), ("lam", env.lam), ("r", env.r),
-                           ("obs", env.observation), ("alteration", env.alteration)):
+        for key, value in (
+            ("theta", env.theta),
+            ("theta_l3", env.theta_l3),
+            ("lam", env.lam),
+            ("r", env.r),
+            ("obs", env.observation),
+            ("alteration", env.alteration),
+        ):
             out[key].append(value.copy())
         if k < len(actions):
             env.step(actions[k])
@@ -92,8 +94,9 @@ def test_batched_env_matches_plain_loop(group_number: int, l2: bool) -> None:
     ticks, batch = 300, 3
     # Bang-bang runs drive the reference across the blender's whole range, the random one anywhere.
     rng = np.random.default_rng(7)
-    actions = np.stack([np.full(ticks, len(ACTIONS) - 1), np.zeros(ticks, dtype=int),
-                        rng.integers(len(ACTIONS), size=ticks)], axis=1)
+    actions = np.stack(
+        [np.full(ticks, len(ACTIONS) - 1), np.zeros(ticks, dtype=int), rng.integers(len(ACTIONS), size=ticks)], axis=1
+    )
     env = run_env(SyncEnv.from_group(group, batch, l2=l2), actions)
     if l2:  # the saturation and both branches of the lambda dynamics are exercised
         assert env["lam"].min() < 0.6 and np.any(np.diff(env["lam"], axis=0) > 0)
@@ -125,8 +128,9 @@ def test_observation_values() -> None:
     # Alone with one other participant: q is the unit phasor of the wrapped offset.
     np.testing.assert_allclose(l3_observation(0.1, np.array([2 * np.pi - 0.1]), 4.0), [0.2, 0.0, 4.0], atol=1e-15)
     # Others at 0 and pi/2, L3 halfway: on their circular mean, |q| = cos(pi/4).
-    np.testing.assert_allclose(l3_observation(np.pi / 4, np.array([0.0, np.pi / 2]), -1.0),
-                               [0.0, 1 - np.sqrt(0.5), -1.0], atol=1e-15)
+    np.testing.assert_allclose(
+        l3_observation(np.pi / 4, np.array([0.0, np.pi / 2]), -1.0), [0.0, 1 - np.sqrt(0.5), -1.0], atol=1e-15
+    )
     batched = l3_observation(np.zeros(4), np.zeros((4, 6)), np.arange(4.0))
     assert batched.shape == (4, 3)
     np.testing.assert_array_equal(batched[:, 2], np.arange(4.0))

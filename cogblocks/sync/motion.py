@@ -10,8 +10,7 @@ Every motion computer has the same ports, so one can replace another in a diagra
 :class:`MotionComputer` is the structure of the deliverable's L3 reference: a
 virtual Kuramoto oscillator at the assisted participant's node whose frequency
 a policy nudges every tick. :class:`MeanPhaseMotion` is the simplest
-alternative: the circular mean of the others' phases.
-"""
+alternative: the circular mean of the others' phases."""
 
 from __future__ import annotations
 
@@ -22,22 +21,21 @@ from typing import Any, Protocol
 import numpy as np
 
 from cogblocks.blocks.angles import wrap_angle
-from cogblocks.blocks.group import ring_adjacency
+from cogblocks.blocks.specs import PHASE
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_array, finite_number, positive_int
+from cogblocks.sync.group import ring_adjacency
 
 __all__ = [
     "ACTIONS",
     "HOLD_ACTION",
-    "OMEGA_L3_LIMIT",
     "L3Context",
     "L3Policy",
     "MeanPhaseMotion",
     "MotionComputer",
+    "OMEGA_L3_LIMIT",
     "l3_observation",
 ]
-
-PHASE = Signal(unit="rad", wrapped=True)
 
 #: Frequency increments (rad/s) an L3 policy chooses from (footnote 3 of the deliverable).
 ACTIONS = np.round(np.arange(-0.5, 0.51, 0.1), 1)

@@ -1,4 +1,4 @@
-"""Kuramoto models of a group's oscillatory motion and its order parameter (section 5.2.1)."""
+"""The group plant of the PoP of Social Connectedness: Kuramoto oscillators on a graph (model 1, Table 2)."""
 
 from __future__ import annotations
 
@@ -8,12 +8,12 @@ from typing import Any
 import numpy as np
 
 from cogblocks.blocks.angles import TWO_PI, wrap_angle
-from cogblocks.sim import Block, Signal
-from cogblocks.sim.params import finite_array, finite_number, positive_int, random_generator
+from cogblocks.blocks.specs import PHASE
+from cogblocks.sim import Block
+from cogblocks.sim.params import finite_array, finite_number, positive_int
 
-__all__ = ["ArmPositions", "KuramotoGroup", "KuramotoOscillator", "OrderParameter", "ring_adjacency"]
+__all__ = ["KuramotoGroup", "KuramotoOscillator", "ring_adjacency"]
 
-PHASE = Signal(unit="rad", wrapped=True)
 _BELOW_TWO_PI = np.nextafter(TWO_PI, 0.0)
 
 
@@ -177,99 +177,3 @@ class KuramotoOscillator(Block):
             if math.isfinite(other):
                 coupling += math.sin(other - phase)
         self.phase = wrap_angle(phase + self.dt * (self.omega + self.gain * coupling))
-
-
-class OrderParameter(Block):
-    """Kuramoto order parameter ``r = |mean_i exp(j θ_i)|`` (eq. 2), in [0, 1].
-
-    Ports: input ``theta`` (shape (N,), rad), output ``r`` (scalar, dimensionless).
-
-    Notes
-    -----
-    Bad data policy: non-finite phases are left out of the mean; with no finite
-    phase the output holds its last value.
-    """
-
-    def __init__(self, *, period: float | None = None) -> None:
-        super().__init__(period=period)
-        self.add_input("theta", Signal(shape=None, unit="rad", wrapped=None))
-        self.add_output("r", Signal(), initial=1.0)
-
-    def setup(self) -> None:
-        if len(self.theta.spec.shape) != 1 or self.theta.spec.shape[0] < 1:
-            raise self._fail(f"theta must be a vector of phases, got shape {self.theta.spec.shape}")
-        self._n = self.theta.spec.shape[0]
-
-    def output(self, k: int) -> None:
-        theta = self.theta.value
-        if not math.isfinite(np.add.reduce(theta)):  # one cheap check keeps cos/sin off inf and NaN
-            theta = theta[np.isfinite(theta)]
-            if theta.size == 0:
-                return
-        self.r.value[...] = math.hypot(np.add.reduce(np.cos(theta)), np.add.reduce(np.sin(theta))) / theta.size
-
-
-class ArmPositions(Block):
-    """Phases to 1D arm positions: ``p_i = offset_i + amplitude_i cos θ_i + noise``.
-
-    The PoP's participants move an arm back and forth along one axis; this
-    block turns the group's phases into such position signals, so that the
-    architecture can be run on positions, as on a real sensor stream.
-
-    Ports: input ``theta`` (shape (N,), rad), output ``p`` (shape (N,), mm).
-
-    Parameters
-    ----------
-    amplitude : float or array_like
-        Half the range of motion per participant, mm (> 0).
-    offset : float or array_like
-        Centre of the motion per participant, mm.
-    noise_std : float
-        Standard deviation of white measurement noise, mm (>= 0).
-    seed : int or numpy.random.Generator, optional
-        Seed of the noise (part of the block's state, so snapshots replay it).
-
-    Notes
-    -----
-    Bad data policy: stateless and element-wise, so a non-finite input element
-    gives a non-finite output element on the same tick (as in NumPy) and
-    nothing else; blocks with memory downstream decide how to treat it.
-    """
-
-    def __init__(
-        self,
-        n: int,
-        amplitude: Any = 150.0,
-        offset: Any = 0.0,
-        *,
-        noise_std: float = 0.0,
-        seed: int | np.random.Generator | None = None,
-        period: float | None = None,
-    ) -> None:
-        super().__init__(period=period)
-        self.n = positive_int(self, "n", n)
-        self.amplitude = np.broadcast_to(finite_array(self, "amplitude", amplitude), (n,)).copy()
-        if np.any(self.amplitude <= 0):
-            raise ValueError(f"ArmPositions: amplitude must be > 0 for every participant, got {amplitude!r}")
-        self.offset = np.broadcast_to(finite_array(self, "offset", offset), (n,)).copy()
-        self.noise_std = finite_number(self, "noise_std", noise_std, low=0.0)
-        self.add_input("theta", Signal(shape=(n,), unit="rad", wrapped=None))
-        self.add_output("p", shape=(n,), unit="mm")
-        rng = random_generator(self, "seed", seed)
-        # the noise of a tick is drawn in the previous tick's update, so output() leaves the state alone
-        self.add_state("noise", self._draw(rng))
-        self.add_state("rng", rng)
-
-    def _draw(self, rng: np.random.Generator) -> np.ndarray:
-        return rng.normal(scale=self.noise_std, size=self.n) if self.noise_std > 0 else np.zeros(self.n)
-
-    @np.errstate(invalid="ignore")  # a non-finite phase gives a NaN position (documented), silently
-    def output(self, k: int) -> None:
-        p = self.p.value
-        np.cos(self.theta.value, out=p)
-        p *= self.amplitude
-        p += self.offset
-        p += self.noise
-
-    def update(self, k: int) -> None:
-        self.noise = self._draw(self.rng)

@@ -1,100 +1,14 @@
-"""L3 motion computers for the PoP of Social Connectedness: policies choosing the virtual oscillator's frequency.
-
-Every policy implements :class:`L3Policy`: ``reset(omega_init)`` at the start of an episode, then
-``act(context)`` once per tick returning an index into :data:`ACTIONS`, the frequency increment of
-the virtual oscillator whose phase is the blender's reference. :class:`DQNPolicy` uses only
-``context.obs``; :class:`LookaheadPolicy` uses the full state in the context and a model of the group.
-"""
+"""The look-ahead L3 policy: the frequency increment that maximises the coming order parameter on the group model."""
 
 from __future__ import annotations
 
-from importlib import resources
-from os import PathLike
-
 import numpy as np
-import torch
-from torch import nn
 
-from cogblocks.blocks.motion import L3Policy
 from cogblocks.data.groups import SyncGroup
-from cogblocks.training.sync_env import (
-    ACTIONS,
-    HOLD_ACTION,
-    OMEGA_L3_LIMIT,
-    BlenderParams,
-    L3Context,
-    SyncModel,
-    l3_observation,
-    order_parameter,
-)
+from cogblocks.sync.model import BlenderParams, SyncModel, order_parameter
+from cogblocks.sync.motion import ACTIONS, HOLD_ACTION, OMEGA_L3_LIMIT, L3Context
 
-__all__ = [
-    "ACTIONS",
-    "DQNPolicy",
-    "L3Context",
-    "L3Policy",
-    "L3QNetwork",
-    "LookaheadPolicy",
-    "l3_observation",
-]
-
-OBS_SIZE = 3
-
-
-class L3QNetwork(nn.Module):
-    """Q-network of the L3 policy: observation (3) -> 128 -> 64 -> one value per action (11), ReLU.
-
-    The observation is used as is, without normalisation, as in the original motion computer.
-    """
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.layers = nn.Sequential(
-            nn.Linear(OBS_SIZE, 128),
-            nn.ReLU(),
-            nn.Linear(128, 64),
-            nn.ReLU(),
-            nn.Linear(64, len(ACTIONS)),
-        )
-
-    def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        """Action values, shape (..., 11), of observations of shape (..., 3)."""
-        return self.layers(obs)
-
-
-class DQNPolicy:
-    """Greedy policy of a trained :class:`L3QNetwork`.
-
-    Parameters
-    ----------
-    network : L3QNetwork
-        Trained network; switched to evaluation mode.
-    """
-
-    def __init__(self, network: L3QNetwork) -> None:
-        self.network = network.eval()
-
-    @classmethod
-    def from_file(cls, path: str | PathLike[str]) -> DQNPolicy:
-        """Load a ``state_dict`` saved by :mod:`cogblocks.training.sync_dqn`."""
-        network = L3QNetwork()
-        network.load_state_dict(torch.load(path, map_location="cpu", weights_only=True))
-        return cls(network)
-
-    @classmethod
-    def default(cls) -> DQNPolicy:
-        """Policy with the weights shipped in ``cogblocks/data/weights/sync_dqn.pt``."""
-        with resources.as_file(resources.files("cogblocks.data") / "weights" / "sync_dqn.pt") as path:
-            return cls.from_file(path)
-
-    def reset(self, omega_init: float) -> None:
-        """The policy is memoryless: nothing to reset."""
-
-    def act(self, context: L3Context) -> int:
-        """Action with the highest value for ``context.obs``."""
-        with torch.no_grad():
-            values = self.network(torch.as_tensor(context.obs, dtype=torch.float32))
-        return int(values.argmax())
+__all__ = ["LookaheadPolicy"]
 
 
 class LookaheadPolicy:
@@ -127,8 +41,9 @@ class LookaheadPolicy:
         self._action = HOLD_ACTION
 
     @classmethod
-    def for_group(cls, group: SyncGroup, *, blender: BlenderParams | None = None, horizon: int = 25,
-                  replan_every: int = 1) -> LookaheadPolicy:
+    def for_group(
+        cls, group: SyncGroup, *, blender: BlenderParams | None = None, horizon: int = 25, replan_every: int = 1
+    ) -> LookaheadPolicy:
         """Look-ahead with an exact model of a bundled group and the given blender."""
         return cls(SyncModel.from_group(group, blender=blender), horizon, replan_every)
 

@@ -1,4 +1,4 @@
-"""Online phase estimation of a 1D oscillation (Algorithm 1 of section 5.2.2) and its offline Hilbert reference."""
+"""Algorithm 1 of section 5.2.2: phase and half-amplitudes of a 1D oscillation, sample by sample."""
 
 from __future__ import annotations
 
@@ -8,16 +8,13 @@ import math
 import numpy as np
 import scipy.signal
 
-from cogblocks.blocks.angles import TWO_PI, wrap_2pi, wrap_angle
-from cogblocks.blocks.core import LowPass
-from cogblocks.blocks.estimation import KalmanEstimator
-from cogblocks.sim import Block, Diagram, Signal
-from cogblocks.sim.params import finite_number, one_of, positive_int
+from cogblocks.blocks.angles import TWO_PI, wrap_angle
+from cogblocks.blocks.specs import PHASE
+from cogblocks.sim import Block
+from cogblocks.sim.params import finite_number, positive_int
 
-__all__ = ["Algorithm1Phase", "PhaseEstimator", "hilbert_phase"]
+__all__ = ["Algorithm1Phase"]
 
-PHASE = Signal(unit="rad", wrapped=True)
-FRONT_ENDS = ("lowpass", "kalman")
 _ROUNDING = 1e-9  # relative size below which a centred position or velocity is rounding noise
 
 
@@ -271,7 +268,22 @@ class Algorithm1Phase(Block):
         self.amp_p.value[...] = amp[:2]
         self.amp_v.value[...] = amp[2:]
         self._pending = (
-            raw, repeats, pf, pc, v, n_pushed, total, amp, known, last, t_max, t_min, omega, lead, phase, coast
+            raw,
+            repeats,
+            pf,
+            pc,
+            v,
+            n_pushed,
+            total,
+            amp,
+            known,
+            last,
+            t_max,
+            t_min,
+            omega,
+            lead,
+            phase,
+            coast,
         )
 
     def _frequency(self, interval: float, omega: float) -> float:
@@ -294,9 +306,9 @@ class Algorithm1Phase(Block):
     def update(self, k: int) -> None:
         if self._pending is None:
             return
-        (
-            raw, repeats, pf, pc, v, n_pushed, total, amp, known, last, t_max, t_min, omega, lead, phase, coast
-        ) = self._pending
+        (raw, repeats, pf, pc, v, n_pushed, total, amp, known, last, t_max, t_min, omega, lead, phase, coast) = (
+            self._pending
+        )
         self.primed = True
         self.raw_prev, self.repeats, self.p_prev, self.pc_prev, self.v_prev = raw, repeats, pf, pc, v
         self.v_hist[self.v_pos] = v
@@ -307,159 +319,3 @@ class Algorithm1Phase(Block):
         self.known[...] = known
         self.last_extremum, self.t_max, self.t_min, self.omega, self.lead = last, t_max, t_min, omega, lead
         self.phase, self.coast = phase, coast
-
-
-class PhaseEstimator(Diagram):
-    """Online phase of a 1D oscillating position: a Butterworth low-pass followed by Algorithm 1.
-
-    A hierarchical diagram of two blocks, ``lowpass`` (:class:`~cogblocks.blocks.LowPass`, started
-    in steady state at the first sample) and ``algorithm`` (:class:`Algorithm1Phase`, which also
-    reads the unfiltered position to recognise missing and frozen samples). With
-    ``front_end="kalman"`` a :class:`~cogblocks.blocks.estimation.KalmanEstimator` named ``kalman``
-    (constant-acceleration model, one axis, its defaults for arm motion in mm) takes the place of
-    the low-pass filter: its ``p_hat``, ``v_hat`` and ``a_hat`` feed the algorithm, which then takes
-    no differences and compensates no lag (``cutoff``, ``order``, ``compensate`` and
-    ``accel_window`` are unused). Other noise parameters: ``replace("kalman", KalmanEstimator(...))``.
-    See :class:`Algorithm1Phase` for the algorithm; ``docs/phase-estimation-1d.md`` for the
-    measurements behind the defaults.
-
-    Ports
-    -----
-    p : input, scalar, ``unit``
-        Position along the axis of the movement (any offset).
-    theta : output, scalar, rad, wrapped
-        Estimated phase in ``[0, 2π)``; ``p = cos ωt`` gives ``θ ≈ ωt``.
-    amp_p : output, shape (2,), ``unit``
-        Current ``[A_p+, A_p−]``.
-    amp_v : output, shape (2,), ``unit``/s
-        Current ``[A_v+, A_v−]``. Position and velocity amplitudes are two ports so that each
-        carries its own unit.
-
-    Parameters
-    ----------
-    cutoff : float
-        Cut-off of the low-pass filter in Hz (> 0, below the Nyquist frequency of the block's step).
-        3 Hz by measurement: with the lag compensated, a lower cut-off damps noise and harmonics
-        but leans more on the frequency estimate; 3 Hz is within 5 % of the best cut-off in every
-        data set measured (2 Hz is best on slowly drifting signals, 4-6 Hz when the frequency
-        wanders fast). Without compensation the best cut-off is about 20 Hz and the error 45 %
-        larger.
-    order : int
-        Order of the Butterworth filter (>= 1).
-    compensate : bool
-        Add the filter's phase lag at the estimated frequency back to the phase (default). Without
-        it the output is plain Algorithm 1 on the filtered signal.
-    front_end : {"lowpass", "kalman"}
-        What estimates position and velocity in front of Algorithm 1: the Butterworth low-pass and
-        backward differences (default), or a Kalman filter (see above). Drop-outs are recognised
-        on the raw position in both cases; the Kalman filter predicts through them.
-    unit, centre_periods, accel_window, min_dropout, holdoff, max_period
-        As in :class:`Algorithm1Phase`.
-    period : float, optional
-        Period of both blocks, in seconds.
-
-    Notes
-    -----
-    Bad data policy: that of :class:`Algorithm1Phase`, which reads the raw position with either
-    front end: a NaN or inf sample is skipped and ``theta``, ``amp_p`` and ``amp_v`` hold; the
-    phase is never NaN.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from cogblocks.sim import Simulator
-    >>> t = np.arange(1000) * 0.01
-    >>> sim = Simulator(PhaseEstimator(), probes={"theta": "algorithm.theta"})
-    >>> theta = sim.run(n_steps=1000, inputs={"p": 300 + 150 * np.cos(2 * np.pi * 0.8 * t)})["theta"]
-    >>> bool(abs(theta[-1] - (2 * np.pi * 0.8 * t[-1]) % (2 * np.pi)) < 0.05)
-    True
-    """
-
-    def __init__(
-        self,
-        *,
-        cutoff: float = 3.0,
-        order: int = 2,
-        unit: str = "mm",
-        centre_periods: int = 2,
-        accel_window: float = 0.05,
-        min_dropout: float = 0.03,
-        holdoff: float = 0.2,
-        max_period: float = 5.0,
-        compensate: bool = True,
-        front_end: str = "lowpass",
-        period: float | None = None,
-    ) -> None:
-        super().__init__(period=period)
-        if not isinstance(compensate, (bool, np.bool_)):
-            raise ValueError(f"PhaseEstimator: compensate must be True or False, got {compensate!r}")
-        self.front_end = one_of(self, "front_end", front_end, FRONT_ENDS)
-        cutoff = finite_number(self, "cutoff", cutoff, low=0.0, low_open=True)
-        order = positive_int(self, "order", order)
-        kalman = front_end == "kalman"
-        algorithm = Algorithm1Phase(
-            unit=unit,
-            centre_periods=centre_periods,
-            accel_window=accel_window,
-            min_dropout=min_dropout,
-            holdoff=holdoff,
-            max_period=max_period,
-            cutoff=cutoff if compensate and not kalman else None,
-            order=order,
-            derivative_inputs=kalman,
-        )
-        if kalman:
-            estimator = self.add("kalman", KalmanEstimator("ca", dims=1, unit=unit))
-            self.add("algorithm", algorithm)
-            self.connect(estimator.p_hat, algorithm.p)
-            self.connect(estimator.v_hat, algorithm.v)
-            self.connect(estimator.a_hat, algorithm.a)
-            self.expose_input("p", estimator.p, algorithm.raw)
-        else:
-            lowpass = self.add("lowpass", LowPass(cutoff, order))
-            self.add("algorithm", algorithm)
-            self.connect(lowpass.y, algorithm.p)
-            self.expose_input("p", lowpass.u, algorithm.raw)
-        self.expose_output("theta", algorithm.theta)
-        self.expose_output("amp_p", algorithm.amp_p)
-        self.expose_output("amp_v", algorithm.amp_v)
-
-
-def hilbert_phase(p: np.ndarray, *, dt: float = 0.01, highpass: float | None = None) -> np.ndarray:
-    """Offline phase of a 1D oscillation: the angle of the analytic signal of the centred position.
-
-    Same convention as :class:`PhaseEstimator`: ``p = cos ωt`` gives ``θ = ωt`` (the analytic signal
-    of ``cos ωt`` is ``exp(iωt)``).
-
-    Parameters
-    ----------
-    p : array_like, shape (n,)
-        Positions sampled every ``dt``; finite values only.
-    dt : float
-        Sampling time in seconds (used only with ``highpass``).
-    highpass : float, optional
-        Centre with a zero-phase (forward-backward) second-order Butterworth high-pass at this
-        cut-off in Hz instead of subtracting the mean: it also removes a slowly drifting offset.
-
-    Returns
-    -------
-    numpy.ndarray
-        Phases in ``[0, 2π)``, shape (n,). Like every Hilbert phase it is unreliable within about
-        one period of either end.
-    """
-    x = np.asarray(p, dtype=np.float64)
-    if x.ndim != 1 or len(x) < 2:
-        raise ValueError(f"hilbert_phase: p must be a 1-D array of at least 2 samples, got shape {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError(f"hilbert_phase: p must be finite; it has {int(np.sum(~np.isfinite(x)))} NaN/inf sample(s)")
-    dt = finite_number("hilbert_phase", "dt", dt, low=0.0, low_open=True)
-    if highpass is None:
-        x = x - x.mean()
-    else:
-        highpass = finite_number(
-            "hilbert_phase", "highpass", highpass, low=0.0, high=0.5 / dt, low_open=True, high_open=True
-        )
-        sos = scipy.signal.butter(2, highpass, btype="highpass", fs=1.0 / dt, output="sos")
-        x = scipy.signal.sosfiltfilt(sos, x)
-    theta = wrap_2pi(np.angle(scipy.signal.hilbert(x)))
-    return theta

@@ -15,8 +15,7 @@ Both use the continuous white-noise kinematic models, per axis:
 
 The process covariance over a step ``dt`` is the exact discretisation,
 ``filterpy.common.Q_continuous_white_noise(order, dt, q)``, so ``q`` does not
-depend on the sampling rate.
-"""
+depend on the sampling rate."""
 
 from __future__ import annotations
 
@@ -51,6 +50,7 @@ _CHI2_1_MEDIAN = float(scipy.stats.chi2.ppf(0.5, 1))
 
 # A position beyond this (in the position unit, e.g. 1000 km in mm) is a corrupted sample, not a measurement.
 _IMPLAUSIBLE = 1e9
+
 
 class KalmanEstimator(Block):
     """Gated Kalman filter of positions with constant-velocity or constant-acceleration model.
@@ -227,10 +227,12 @@ class KalmanEstimator(Block):
         self._post: tuple[np.ndarray, np.ndarray] | None = None
 
     def _transition(self, dt: float) -> np.ndarray:
-        one_axis = np.array([
-            [dt ** (j - i) / math.factorial(j - i) if j >= i else 0.0 for j in range(self.order)]
-            for i in range(self.order)
-        ])
+        one_axis = np.array(
+            [
+                [dt ** (j - i) / math.factorial(j - i) if j >= i else 0.0 for j in range(self.order)]
+                for i in range(self.order)
+            ]
+        )
         return np.kron(np.eye(self.n), one_axis)
 
     # -- the tick --------------------------------------------------------------
@@ -319,12 +321,14 @@ class KalmanEstimator(Block):
         samples = np.vstack([self.buf_z[first:], self._z])
         kf = self._kf
         x = np.zeros(self.order * self.n)
-        x[0::self.order] = samples[0]
+        x[0 :: self.order] = samples[0]
         kf.x, kf.P = x, np.diag(self._prior_var)
         for step, z in zip(np.diff(ticks), samples[1:], strict=True):
             dt = step * self.dt
-            kf.predict(F=self._transition(dt), Q=Q_continuous_white_noise(self.order, dt, self.process_noise,
-                                                                         block_size=self.n))
+            kf.predict(
+                F=self._transition(dt),
+                Q=Q_continuous_white_noise(self.order, dt, self.process_noise, block_size=self.n),
+            )
             kf.update(z)
         return kf.x, kf.P
 
@@ -409,7 +413,7 @@ def fit_noise(
     variances = []
     for lag in lags:
         span = len(x) - m * lag
-        d = sum(b * x[j * lag:j * lag + span] for j, b in enumerate(binom))
+        d = sum(b * x[j * lag : j * lag + span] for j, b in enumerate(binom))
         d = d[np.isfinite(d)]
         if d.size < 10:
             raise ValueError(f"fit_noise: too few finite samples to form differences at lag {lag}")
@@ -417,10 +421,12 @@ def fit_noise(
     v = np.array(variances)
     if not np.all(v > 0):
         raise ValueError("fit_noise: the positions do not vary; cannot estimate noise")
-    design = np.column_stack([
-        _PROCESS_FACTOR[m] * (np.array(lags, dtype=float) * dt) ** (2 * m - 1),
-        np.full(len(lags), float(math.comb(2 * m, m))),
-    ])
+    design = np.column_stack(
+        [
+            _PROCESS_FACTOR[m] * (np.array(lags, dtype=float) * dt) ** (2 * m - 1),
+            np.full(len(lags), float(math.comb(2 * m, m))),
+        ]
+    )
     weighted = design / v[:, None]
     scale = np.linalg.norm(weighted, axis=0)  # equalise the columns for the solver
     theta, _ = scipy.optimize.nnls(weighted / scale, np.ones(len(lags)))

@@ -4,22 +4,18 @@ The PoP of Amplification compares the part of a movement received so far with a 
 movements (appendix paper, section III-B). :class:`Buffer` keeps the newest ``capacity`` samples in
 preallocated ring arrays that are its outputs, so a downstream block reads the samples it has not
 seen yet (rows ``j % capacity`` for the sample numbers ``j`` since it last looked) without any copy
-of the history being made on the way.
-"""
+of the history being made on the way."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from cogblocks.blocks.samples import plausible
+from cogblocks.blocks.specs import COUNT, POSITION, VELOCITY
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import positive_int
 
 __all__ = ["Buffer", "ordered_window"]
-
-POSITION = Signal(shape=(3,), unit="mm")
-VELOCITY = Signal(shape=(3,), unit="mm/s")
-COUNT = Signal(dtype=np.int64, unit="1")
 
 
 class Buffer(Block):

@@ -14,22 +14,26 @@ so the map has one multiplier on each side of λ*:
 
 with the one-sided slope of λ∞ on that side. Since λ∞ decreases in λ, the saturated
 regime contracts *faster* than κ alone says, and can oscillate or lose stability
-while ``dt κ < 2`` still holds.
-"""
+while ``dt κ < 2`` still holds."""
 
 from __future__ import annotations
 
 import math
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import casadi as ca
 import numpy as np
 
-from cogblocks.blocks.blend import Blender
+if TYPE_CHECKING:  # the blender module imports this one: a run-time import back would be a cycle
+    import casadi as ca
+
+    from cogblocks.sync.blender import Blender
 
 __all__ = ["LambdaReport", "check_blender", "lambda_report"]
 
+# What the analysis reads of a Blender: checked by name, since the Blender module imports this one.
+_BLENDER_PARAMETERS = ("lam_inf", "lam_min", "lam_max", "e_max", "kappa_plus", "kappa_minus", "psi")
 # Grid that brackets λ* before Newton refines it (λ − λ∞(λ) increases, so one sign change).
 _BRACKET_POINTS = 65
 # Newton tolerance on |λ − λ∞(λ)|, in rad.
@@ -155,6 +159,8 @@ class LambdaReport:
 
 def _lam_inf_expr(blender: Blender, lam: ca.SX) -> ca.SX:
     """λ∞ of eq. (5) at e = λ, as a casadi expression mirroring :meth:`Blender.lam_inf`."""
+    import casadi as ca  # loaded on first check, so that importing the blender stays light
+
     x = lam / blender.e_max
     if blender.psi == "triangular":
         psi = ca.fmax(0.0, 1.0 - ca.fabs(x))
@@ -166,6 +172,8 @@ def _lam_inf_expr(blender: Blender, lam: ca.SX) -> ca.SX:
 
 def _equilibrium(blender: Blender) -> tuple[float, float, float]:
     """λ* by a casadi Newton root finder, and the one-sided slopes of λ∞ there."""
+    import casadi as ca
+
     lo, hi = blender.lam_min, blender.lam_max
     if hi == lo:
         return lo, 0.0, 0.0
@@ -283,7 +291,7 @@ def lambda_report(blender: Blender, dt: float = 0.01, *, tolerance: float = 0.02
     ``λ* = (Δ + λ_min) / (1 + Δ/e_max)`` with ``Δ = λ_max − λ_min`` when this lies
     below e_max, else λ_min.
     """
-    if not isinstance(blender, Blender):
+    if not all(hasattr(blender, name) for name in _BLENDER_PARAMETERS):
         raise TypeError(f"lambda_report needs a Blender, got {type(blender).__name__}")
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise ValueError(f"lambda_report: dt must be a positive number of seconds, got {dt!r}")

@@ -4,8 +4,7 @@ Blending a human movement with a reference changes where it ends. The corrector 
 ``v_u = k_u · α ⊙ (p_h − p_a)`` to the altered velocity, with ``α ∈ {0, 1}³`` switching the
 correction on or off per axis, chosen every 10 samples by a DQN from the state
 ``[p_h, p_a, v_h, v_a, horizon]``. The reward (16)–(17) and its constants (Algorithm 1 of the
-paper's reference [17]) are here too, shared by the block and its training environment.
-"""
+paper's reference [17]) are here too, shared by the block and its training environment."""
 
 from __future__ import annotations
 
@@ -19,6 +18,7 @@ import torch
 from torch import nn
 
 from cogblocks.blocks.samples import plausible
+from cogblocks.blocks.specs import COUNT, POSITION, VELOCITY
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, positive_int
 
@@ -34,10 +34,6 @@ __all__ = [
     "step_reward",
 ]
 
-POSITION = Signal(shape=(3,), unit="mm")
-VELOCITY = Signal(shape=(3,), unit="mm/s")
-COUNT = Signal(dtype=np.int64, unit="1")
-
 #: The 8 actions α ∈ {0, 1}³, in the prototype's order (none, single axes, pairs, all).
 ACTIONS = np.array(
     [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, 0, 1], [0, 1, 1], [1, 1, 1]], dtype=np.float64
@@ -49,9 +45,7 @@ CORRECTOR_WEIGHTS = "corrector.pt"
 _STATE_SCALE = np.concatenate([np.full(6, 300.0), np.full(6, 1000.0), [200.0]])
 
 
-def reward_constants(
-    k_s: float, *, gamma: float = 0.99, sigma: float = 1e4, k_out: int = 200
-) -> tuple[float, float]:
+def reward_constants(k_s: float, *, gamma: float = 0.99, sigma: float = 1e4, k_out: int = 200) -> tuple[float, float]:
     """The prize ``r_in`` and the punishment ``r_exit`` of eq. (17).
 
     With ``r_max = r_G_max = 0``: ``r_in = σ (1 − γ) / γ^k_s`` and

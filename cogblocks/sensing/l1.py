@@ -10,14 +10,13 @@ swapped (``l1.replace("kalman", ...)``) or probed (``"l1.kalman.v_hat"``)::
 
     p ──┬─────────────────────────────┐
         └─> kalman (KalmanEstimator) ──> predictor (KinematicPredictor) ──> p_avatar
-             p_hat, v_hat, a_hat, predicted
-"""
+             p_hat, v_hat, a_hat, predicted"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from cogblocks.blocks.estimation import KalmanEstimator
+from cogblocks.sensing.kalman import KalmanEstimator
 from cogblocks.sim import Block, Diagram, Signal
 from cogblocks.sim.params import finite_number, flag, unit_arg
 
@@ -123,7 +122,7 @@ class L1(Diagram):
     Section 4 states that the current sensors (IMUs fused with cameras) need no
     signal compensation; this architecture covers the delays and noise that
     section 3 assigns to L1 for streams that do need it. Bad data policy: that of
-    :class:`~cogblocks.blocks.estimation.KalmanEstimator`; the output is NaN
+    :class:`~cogblocks.sensing.KalmanEstimator`; the output is NaN
     only before the first finite sample.
     """
 

@@ -3,20 +3,19 @@
 ``θ_L2 = wrap(θ_L0 + sat_λ(wrap_π(θ_ref − θ_L0)))`` with a threshold λ that
 follows ``λ∞ = ψ(e / e_max)(λ_max − λ_min) + λ_min``, ``e = wrap_π(θ_L2 − θ_L0)``,
 through the piecewise first-order dynamics of eq. (6), integrated by forward
-Euler: fast decrease (κ⁻), slow recovery (κ⁺).
-"""
+Euler: fast decrease (κ⁻), slow recovery (κ⁺)."""
 
 from __future__ import annotations
 
 import math
 
 from cogblocks.blocks.angles import TWO_PI, wrap_angle
+from cogblocks.blocks.specs import PHASE
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of
+from cogblocks.sync.stability import check_blender
 
 __all__ = ["Blender", "DELIVERABLE_BLENDER"]
-
-PHASE = Signal(unit="rad", wrapped=True)
 
 #: The L2 parameters of section 5.2.3.2 (κ⁻ = 2.5 decrease, κ⁺ = 1 increase; see the notes).
 DELIVERABLE_BLENDER = {
@@ -67,7 +66,7 @@ class Blender(Block):
     -----
     The step must keep the forward-Euler λ dynamics stable: ``dt·κ < 2`` for
     both rates and a stable equilibrium at the limit λ*
-    (:func:`cogblocks.analysis.stability.check_blender`), or compiling fails;
+    (:func:`cogblocks.sync.check_blender`), or compiling fails;
     ``dt·κ > 1`` makes λ overshoot λ∞ and only warns. Defaults are the
     deliverable's values (:data:`DELIVERABLE_BLENDER`).
 
@@ -105,9 +104,7 @@ class Blender(Block):
 
     def setup(self) -> None:
         # the λ dynamics must be stable for this step, both along the linear pieces and at the
-        # equilibrium where the blender sits at its limit (see cogblocks.analysis.stability)
-        from cogblocks.analysis.stability import check_blender
-
+        # equilibrium where the blender sits at its limit (see cogblocks.sync.stability)
         try:
             check_blender(self, self.dt)
         except ValueError as exc:

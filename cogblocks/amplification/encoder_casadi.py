@@ -1,0 +1,213 @@
+"""The encoder network as a casadi function and the solver of Problem (13) built on it."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from cogblocks.amplification.encoder import (
+    N_POINTS,
+    EncoderNet,
+    resampling_matrix,
+)
+from cogblocks.sim.params import positive_int
+
+__all__ = ["encoder_to_casadi", "input_map"]
+
+_U_SCALE = 100.0  # mm/s: knots are solved in units of 100 mm/s, so that they are of order one
+_PENALTY = 1e3  # weight of the encoding slack (per logit unit) against the correction's cost
+
+
+def encoder_to_casadi(network: EncoderNet, *, logit: bool = False, sharpness: float | None = None) -> ca.Function:
+    """The encoding network ε̂ as a casadi function of its 60 inputs, weights exported from torch.
+
+    The network is taken in evaluation mode (dropout is the identity):
+    ``ε̂ = sigmoid(w₂·relu(W₁ (x − mean)/scale + b₁) + b₂)``, in double precision.
+
+    Parameters
+    ----------
+    network : EncoderNet
+        The trained classifier.
+    logit : bool
+        Return the pre-sigmoid output ``z`` (ε̂ = sigmoid(z)) instead of ε̂: the form used in
+        constraints, since ``ε̂ ≥ 0.9`` is ``z ≥ ln 9`` and the sigmoid's flat tails do not slow a
+        solver down.
+    sharpness : float, optional
+        Replace ``relu(y)`` by the softplus ``max(y, 0) + log(1 + exp(−β|y|))/β``, β =
+        ``sharpness`` (above ``relu`` by at most ln 2/β): a smooth model of the network for
+        Newton-type solvers, which cycle on the kinks of the exact one.
+
+    Returns
+    -------
+    casadi.Function
+        ``x (60) → ε̂`` (or ``z``), named ``"encoder"``; callable on numbers and on MX symbols.
+    """
+    if not isinstance(network, EncoderNet):
+        raise ValueError(f"encoder_to_casadi: network must be an EncoderNet, got {type(network).__name__}")
+    w = _weights(network)
+    x = ca.MX.sym("x", len(w["mean"]))
+    pre = ca.mtimes(ca.DM(w["w1"]), (x - ca.DM(w["mean"])) / ca.DM(w["scale"])) + ca.DM(w["b1"])
+    hidden = ca.fmax(0, pre)
+    if sharpness is not None:
+        hidden = hidden + ca.log1p(ca.exp(-sharpness * ca.fabs(pre))) / sharpness
+    z = ca.dot(ca.DM(w["w2"]), hidden) + w["b2"]
+    return ca.Function("encoder", [x], [z if logit else 1 / (1 + ca.exp(-z))], ["x"], ["logit" if logit else "eps"])
+
+
+def input_map(length: int, n_points: int = N_POINTS) -> np.ndarray:
+    """The classifier input as a linear map of a movement's samples, for one restricted length.
+
+    Cubic-spline resampling on fixed abscissae is linear in the data, so its matrix is obtained by
+    resampling unit vectors with :func:`cogblocks.data.features.resample_movement`
+    (:func:`cogblocks.amplification.encoder.resampling_matrix`, shared with w̃ and the online classifier);
+    one copy per axis gives the 60 inputs.
+
+    Parameters
+    ----------
+    length : int
+        Samples of the restricted movement (≥ 1).
+    n_points : int
+        Resampled points per axis.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3·n_points, 3·length)
+        ``inputs = M @ velocity[:length].T.reshape(-1)``, axis-major on both sides as
+        ``resample_movement`` returns its points.
+    """
+    length = positive_int("input_map", "length", length)
+    return np.kron(np.eye(3), resampling_matrix(length, n_points))
+
+
+def _weights(network: EncoderNet) -> dict[str, Any]:
+    state = {k: v.detach().double().cpu().numpy() for k, v in network.state_dict().items()}
+    return {
+        "mean": state["mean"],
+        "scale": state["scale"],
+        "w1": state["hidden.weight"],
+        "b1": state["hidden.bias"],
+        "w2": state["out.weight"][0],
+        "b2": float(state["out.bias"][0]),
+    }
+
+
+def _weights_key(weights: dict[str, Any]) -> str:
+    digest = hashlib.sha256()
+    for name in sorted(weights):
+        digest.update(name.encode())
+        digest.update(np.ascontiguousarray(weights[name], dtype=np.float64).tobytes())
+    return digest.hexdigest()
+
+
+class _Deadline(ca.Callback):
+    """Iteration callback that stops casadi's SQP before an iteration that would end past the deadline.
+
+    Time is the calling thread's CPU time (``time.thread_time``): a solve is not cut short for the
+    time the scheduler gave other processes. An iteration is predicted to take as long as the
+    previous one (the first, as long as the set-up before it), so a solve ends within about one
+    iteration's jitter of the limit.
+    """
+
+    def __init__(self, sizes: dict[str, int]) -> None:
+        ca.Callback.__init__(self)
+        self.sizes = sizes
+        self.deadline = self.last = math.inf
+        self.construct("optimal_blending_deadline", {})
+
+    def start(self, limit: float) -> None:
+        """Arm the deadline ``limit`` seconds of CPU time from now, for the next solve."""
+        self.last = time.thread_time()
+        self.deadline = self.last + limit
+
+    def get_n_in(self) -> int:
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_name_in(self, i: int) -> str:
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i: int) -> str:
+        return "stop"
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        return ca.Sparsity.dense(self.sizes[ca.nlpsol_out(i)])
+
+    def eval(self, arg: list) -> list:
+        now = time.thread_time()
+        step, self.last = now - self.last, now
+        return [1 if now + step > self.deadline else 0]
+
+
+@dataclass
+class _Solver:
+    function: ca.Function
+    deadline: _Deadline | None  # sqpmethod only: IPOPT has its own time limit
+
+
+# Built once per (network, knots per axis, settings) and shared by every block: a validation run
+# makes a block per movement, and building a solver takes about 10 ms.
+_SOLVERS: dict[tuple, _Solver] = {}
+
+
+def _solver(network: EncoderNet, key: str, n: int, method: str, time_limit: float, sharpness: float) -> _Solver:
+    """The parametric NLP of one decision with ``n`` free knots per axis (see :class:`OptimalBlender`)."""
+    cache_key = (key, n, method, time_limit, sharpness)
+    if cache_key in _SOLVERS:
+        return _SOLVERS[cache_key]
+    n_in = network.hidden.in_features
+    w = ca.MX.sym("w", 3 * n)  # knots, axis-major, in units of _U_SCALE
+    s = ca.MX.sym("s")  # encoding slack, in logit units
+    sizes = {"A": n_in * 3 * n, "x0": n_in, "G": n * n, "q": 3 * n, "cs": n, "g0": 3, "dir": 3, "rhs": 4}
+    p = ca.MX.sym("p", sum(sizes.values()))
+    part = dict(zip(sizes, ca.vertsplit(p, [int(i) for i in np.cumsum([0, *sizes.values()])]), strict=True))
+    a, g = ca.reshape(part["A"], n_in, 3 * n), ca.reshape(part["G"], n, n)
+    sign, z_rhs, speed_rhs, delta = ca.vertsplit(part["rhs"])
+    axes = ca.vertsplit(w, [0, n, 2 * n, 3 * n])
+    cost = sum(ca.dot(u, ca.mtimes(g, u)) for u in axes) + 2 * ca.dot(part["q"], w) + _PENALTY * s
+    z = encoder_to_casadi(network, logit=True, sharpness=sharpness)(ca.mtimes(a, w) + part["x0"])
+    gap = part["g0"] + ca.vertcat(*[ca.dot(part["cs"], u) for u in axes])
+    last = ca.vertcat(*[u[n - 1] for u in axes])
+    constraints = ca.vertcat(sign * z + s - z_rhs, ca.sumsqr(gap) - delta**2, ca.dot(part["dir"], last) - speed_rhs)
+    nlp = {"x": ca.vertcat(w, s), "p": p, "f": cost, "g": constraints}
+    deadline = None
+    if method == "ipopt":
+        options = {
+            "print_time": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.max_cpu_time": time_limit,
+            "ipopt.tol": 1e-6,
+            "ipopt.warm_start_init_point": "yes",
+            "ipopt.mu_init": 1e-3,
+        }
+    else:
+        deadline = _Deadline({"x": 3 * n + 1, "f": 1, "g": 3, "lam_x": 3 * n + 1, "lam_g": 3, "lam_p": p.numel()})
+        options = {
+            "print_time": False,
+            "print_header": False,
+            "print_iteration": False,
+            "print_status": False,
+            "qpsol": "qrqp",
+            # an indefinite QP can keep qrqp busy for tens of ms: cap it, the next SQP iteration recovers
+            "qpsol_options": {
+                "print_iter": False,
+                "print_header": False,
+                "print_info": False,
+                "error_on_fail": False,
+                "max_iter": 50,
+            },
+            "max_iter": 50,
+            "error_on_fail": False,
+            "iteration_callback": deadline,
+        }
+    solver = _Solver(ca.nlpsol(f"optimal_blending_{n}", method, nlp, options), deadline)
+    _SOLVERS[cache_key] = solver
+    return solver

@@ -1,0 +1,131 @@
+"""The online 1D phase estimator: a low-pass (or Kalman) front end followed by Algorithm 1."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cogblocks.blocks import LowPass
+from cogblocks.phase.algorithm1 import Algorithm1Phase
+from cogblocks.sensing import KalmanEstimator
+from cogblocks.sim import Diagram
+from cogblocks.sim.params import finite_number, one_of, positive_int
+
+__all__ = ["PhaseEstimator"]
+
+FRONT_ENDS = ("lowpass", "kalman")
+
+
+class PhaseEstimator(Diagram):
+    """Online phase of a 1D oscillating position: a Butterworth low-pass followed by Algorithm 1.
+
+    A hierarchical diagram of two blocks, ``lowpass`` (:class:`~cogblocks.blocks.LowPass`, started
+    in steady state at the first sample) and ``algorithm`` (:class:`Algorithm1Phase`, which also
+    reads the unfiltered position to recognise missing and frozen samples). With
+    ``front_end="kalman"`` a :class:`~cogblocks.sensing.KalmanEstimator` named ``kalman``
+    (constant-acceleration model, one axis, its defaults for arm motion in mm) takes the place of
+    the low-pass filter: its ``p_hat``, ``v_hat`` and ``a_hat`` feed the algorithm, which then takes
+    no differences and compensates no lag (``cutoff``, ``order``, ``compensate`` and
+    ``accel_window`` are unused). Other noise parameters: ``replace("kalman", KalmanEstimator(...))``.
+    See :class:`Algorithm1Phase` for the algorithm; ``docs/phase-estimation-1d.md`` for the
+    measurements behind the defaults.
+
+    Ports
+    -----
+    p : input, scalar, ``unit``
+        Position along the axis of the movement (any offset).
+    theta : output, scalar, rad, wrapped
+        Estimated phase in ``[0, 2π)``; ``p = cos ωt`` gives ``θ ≈ ωt``.
+    amp_p : output, shape (2,), ``unit``
+        Current ``[A_p+, A_p−]``.
+    amp_v : output, shape (2,), ``unit``/s
+        Current ``[A_v+, A_v−]``. Position and velocity amplitudes are two ports so that each
+        carries its own unit.
+
+    Parameters
+    ----------
+    cutoff : float
+        Cut-off of the low-pass filter in Hz (> 0, below the Nyquist frequency of the block's step).
+        3 Hz by measurement: with the lag compensated, a lower cut-off damps noise and harmonics
+        but leans more on the frequency estimate; 3 Hz is within 5 % of the best cut-off in every
+        data set measured (2 Hz is best on slowly drifting signals, 4-6 Hz when the frequency
+        wanders fast). Without compensation the best cut-off is about 20 Hz and the error 45 %
+        larger.
+    order : int
+        Order of the Butterworth filter (>= 1).
+    compensate : bool
+        Add the filter's phase lag at the estimated frequency back to the phase (default). Without
+        it the output is plain Algorithm 1 on the filtered signal.
+    front_end : {"lowpass", "kalman"}
+        What estimates position and velocity in front of Algorithm 1: the Butterworth low-pass and
+        backward differences (default), or a Kalman filter (see above). Drop-outs are recognised
+        on the raw position in both cases; the Kalman filter predicts through them.
+    unit, centre_periods, accel_window, min_dropout, holdoff, max_period
+        As in :class:`Algorithm1Phase`.
+    period : float, optional
+        Period of both blocks, in seconds.
+
+    Notes
+    -----
+    Bad data policy: that of :class:`Algorithm1Phase`, which reads the raw position with either
+    front end: a NaN or inf sample is skipped and ``theta``, ``amp_p`` and ``amp_v`` hold; the
+    phase is never NaN.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cogblocks.sim import Simulator
+    >>> t = np.arange(1000) * 0.01
+    >>> sim = Simulator(PhaseEstimator(), probes={"theta": "algorithm.theta"})
+    >>> theta = sim.run(n_steps=1000, inputs={"p": 300 + 150 * np.cos(2 * np.pi * 0.8 * t)})["theta"]
+    >>> bool(abs(theta[-1] - (2 * np.pi * 0.8 * t[-1]) % (2 * np.pi)) < 0.05)
+    True
+    """
+
+    def __init__(
+        self,
+        *,
+        cutoff: float = 3.0,
+        order: int = 2,
+        unit: str = "mm",
+        centre_periods: int = 2,
+        accel_window: float = 0.05,
+        min_dropout: float = 0.03,
+        holdoff: float = 0.2,
+        max_period: float = 5.0,
+        compensate: bool = True,
+        front_end: str = "lowpass",
+        period: float | None = None,
+    ) -> None:
+        super().__init__(period=period)
+        if not isinstance(compensate, (bool, np.bool_)):
+            raise ValueError(f"PhaseEstimator: compensate must be True or False, got {compensate!r}")
+        self.front_end = one_of(self, "front_end", front_end, FRONT_ENDS)
+        cutoff = finite_number(self, "cutoff", cutoff, low=0.0, low_open=True)
+        order = positive_int(self, "order", order)
+        kalman = front_end == "kalman"
+        algorithm = Algorithm1Phase(
+            unit=unit,
+            centre_periods=centre_periods,
+            accel_window=accel_window,
+            min_dropout=min_dropout,
+            holdoff=holdoff,
+            max_period=max_period,
+            cutoff=cutoff if compensate and not kalman else None,
+            order=order,
+            derivative_inputs=kalman,
+        )
+        if kalman:
+            estimator = self.add("kalman", KalmanEstimator("ca", dims=1, unit=unit))
+            self.add("algorithm", algorithm)
+            self.connect(estimator.p_hat, algorithm.p)
+            self.connect(estimator.v_hat, algorithm.v)
+            self.connect(estimator.a_hat, algorithm.a)
+            self.expose_input("p", estimator.p, algorithm.raw)
+        else:
+            lowpass = self.add("lowpass", LowPass(cutoff, order))
+            self.add("algorithm", algorithm)
+            self.connect(lowpass.y, algorithm.p)
+            self.expose_input("p", lowpass.u, algorithm.raw)
+        self.expose_output("theta", algorithm.theta)
+        self.expose_output("amp_p", algorithm.amp_p)
+        self.expose_output("amp_v", algorithm.amp_v)

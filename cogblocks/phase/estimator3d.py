@@ -1,0 +1,129 @@
+"""The online 3D phase estimator of section 6: period estimator, reference customizer and phase computer."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from cogblocks.blocks.discrete import BackwardDifference
+from cogblocks.phase.computer import PhaseComputer
+from cogblocks.phase.customizer import ReferenceCustomizer, _as_curve
+from cogblocks.phase.period import PeriodEstimator
+from cogblocks.sensing import KalmanEstimator
+from cogblocks.sim import Diagram
+from cogblocks.sim.params import one_of
+
+__all__ = ["PhaseEstimator3D"]
+
+
+class PhaseEstimator3D(Diagram):
+    """Online phase of a quasi-periodic 3D motion (section 6.1, Figure 11), as one block.
+
+    A :class:`BackwardDifference` (named ``velocity``) gives the velocity from the positions, a
+    :class:`PeriodEstimator` (``period``) records the last completed period, a
+    :class:`ReferenceCustomizer` (``customizer``) fits the reference to it and a
+    :class:`PhaseComputer` (``phase``) finds the phase on the fitted reference; the phase is fed
+    back to the period estimator, which ends the later periods where it wraps. The velocity is
+    computed inside, by the same backward difference as the reference's velocity, so that the two
+    match in noise and lag; give a smoothed position if the sensor is noisy.
+
+    With ``velocity="kalman"`` a :class:`~cogblocks.sensing.KalmanEstimator` named
+    ``kalman`` (``kalman_model``, three axes, its defaults for arm motion in mm) replaces the
+    backward difference: its ``p_hat`` goes to the period estimator and the phase computer in place
+    of the raw position, its ``v_hat`` to the phase computer in place of the differences. It
+    smooths the noise and predicts through missing and frozen samples.
+
+    Ports
+    -----
+    p : input, shape (3,), mm
+        Position of the tracked point.
+    theta : output, rad, wrapped
+        Estimated phase in ``[0, 2π)``, 0 at the start of the reference motion; held at 0 while
+        ``valid`` is False.
+    valid : output, bool
+        False during the first period (and until its end has been detected), True after.
+
+    Parameters
+    ----------
+    reference : array_like, shape (N, 3)
+        The reference motion γ_ref, one cycle from phase 0, in mm.
+    h, capacity, start_speed, match_ratio, min_period_fraction
+        See :class:`PeriodEstimator`.
+    search, window, jump_factor, distance_floor, velocity_weight
+        See :class:`PhaseComputer`.
+    velocity : {"difference", "kalman"}
+        Backward differences of the raw position (default) or the Kalman front end above.
+    kalman_model : {"cv", "ca"}
+        Model of that Kalman filter (``"ca"`` by default); unused with ``velocity="difference"``.
+
+    Notes
+    -----
+    Bad data policy: a non-finite or implausible (beyond 1 km) sample gives a bad velocity inside,
+    on which the period estimator skips the sample and the phase computer holds the phase; with
+    ``velocity="kalman"`` the filter predicts through it instead. ``theta`` is never NaN.
+    """
+
+    def __init__(
+        self,
+        reference: Any,
+        *,
+        h: int = 10,
+        capacity: int = 1000,
+        start_speed: float = 50.0,
+        match_ratio: float = 0.3,
+        min_period_fraction: float = 0.7,
+        search: str = "warm",
+        window: int = 10,
+        jump_factor: float = 3.0,
+        distance_floor: float = 5.0,
+        velocity_weight: float | None = None,
+        velocity: str = "difference",
+        kalman_model: str = "ca",
+        period: float | None = None,
+    ) -> None:
+        super().__init__(period=period)
+        self.velocity = one_of(self, "velocity", velocity, ("difference", "kalman"))
+        self.kalman_model = one_of(self, "kalman_model", kalman_model, ("cv", "ca"))
+        reference = _as_curve("PhaseEstimator3D", "reference", reference, 2)
+        if velocity == "kalman":
+            front = self.add("kalman", KalmanEstimator(kalman_model, dims=3, unit="mm"))
+        else:
+            front = self.add("velocity", BackwardDifference())
+        estimator = self.add(
+            "period",
+            PeriodEstimator(
+                h=h,
+                capacity=capacity,
+                start_speed=start_speed,
+                match_ratio=match_ratio,
+                min_period_fraction=min_period_fraction,
+            ),
+        )
+        customizer = self.add("customizer", ReferenceCustomizer(reference))
+        phase = self.add(
+            "phase",
+            PhaseComputer(
+                search=search,
+                window=window,
+                jump_factor=jump_factor,
+                distance_floor=distance_floor,
+                velocity_weight=velocity_weight,
+            ),
+        )
+        self.connect(estimator.last_period, customizer.last_period)
+        self.connect(estimator.last_length, customizer.last_length)
+        self.connect(estimator.period_count, customizer.period_count)
+        self.connect(customizer.positions, phase.positions)
+        self.connect(customizer.velocities, phase.velocities)
+        self.connect(customizer.length, phase.length)
+        self.connect(customizer.count, phase.count)
+        self.connect(phase.theta, estimator.theta)
+        self.connect(phase.valid, estimator.valid)
+        if velocity == "kalman":
+            self.connect(front.p_hat, estimator.p, phase.p)
+            self.connect(front.v_hat, phase.v)
+            self.expose_input("p", front.p)
+        else:
+            self.connect(front.y, phase.v)
+            self.expose_input("p", front.u, estimator.p, phase.p)
+        self.expose_output("theta", phase.theta)
+        self.expose_output("valid", phase.valid)

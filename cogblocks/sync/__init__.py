@@ -1,0 +1,49 @@
+"""The PoP of Social Connectedness (section 5.2): the group plant, the order parameter, the blender and
+its stability check, the motion computers with their L3 policies and the group model they plan with,
+and the L2 architecture as one block.
+
+``DQNPolicy`` is imported on first use, so that this package loads without torch.
+"""
+
+import importlib
+from typing import Any
+
+from cogblocks.sync.blender import DELIVERABLE_BLENDER, Blender
+from cogblocks.sync.group import KuramotoGroup, KuramotoOscillator, ring_adjacency
+from cogblocks.sync.l2 import L2Sync
+from cogblocks.sync.lookahead import LookaheadPolicy
+from cogblocks.sync.model import BlenderParams, SyncModel
+from cogblocks.sync.motion import L3Context, L3Policy, MeanPhaseMotion, MotionComputer
+from cogblocks.sync.order import OrderParameter
+from cogblocks.sync.positions import ArmPositions
+from cogblocks.sync.stability import LambdaReport, check_blender, lambda_report
+
+_LAZY = {"DQNPolicy": "cogblocks.sync.dqn_policy"}
+
+__all__ = [
+    "DELIVERABLE_BLENDER",
+    "ArmPositions",
+    "Blender",
+    "BlenderParams",
+    "DQNPolicy",
+    "KuramotoGroup",
+    "KuramotoOscillator",
+    "L2Sync",
+    "L3Context",
+    "L3Policy",
+    "LambdaReport",
+    "LookaheadPolicy",
+    "MeanPhaseMotion",
+    "MotionComputer",
+    "OrderParameter",
+    "SyncModel",
+    "check_blender",
+    "lambda_report",
+    "ring_adjacency",
+]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'cogblocks.sync' has no attribute {name!r}")
