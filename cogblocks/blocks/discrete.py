@@ -273,6 +273,10 @@ class DiscreteLTI(Block):
         if sys_dt is not True and abs(float(sys_dt) - self.dt) > 1e-12:
             raise self._fail(f"the system's dt {sys_dt} s differs from the block's step {self.dt} s")
 
+    def linear_feedthrough(self) -> dict[tuple[str, str], np.ndarray]:
+        """``y = C x + D u``: the direct-feedthrough matrix is ``D``."""
+        return {("y", "u"): self.D}
+
     def output(self, k: int) -> None:
         u = self.u.value.reshape(-1)
         if np.isfinite(u).all():

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable, Mapping
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,9 @@ from cogblocks.sim.params import (
     finite_array,
     finite_number,
     flag,
+    unit_arg,
 )
+from cogblocks.sim.signal import unit_product
 
 __all__ = ["Function", "Gain", "Saturation", "Sum"]
 
@@ -24,7 +27,8 @@ __all__ = ["Function", "Gain", "Saturation", "Sum"]
 class Gain(Block):
     """Multiply the input by a gain: ``y = k * u``, or ``y = k @ u`` for a matrix gain.
 
-    Ports: input ``u`` (any spec), output ``y`` (spec of ``u``, not wrapped).
+    Ports: input ``u`` (any spec), output ``y`` (spec of ``u``, not wrapped; its
+    unit times the gain's ``unit`` when that is given).
 
     Parameters
     ----------
@@ -32,6 +36,10 @@ class Gain(Block):
         Scalar or element-wise gain; with ``matrix=True`` a 2-D matrix.
     matrix : bool
         Treat ``k`` as a matrix (``y = k @ u``; ``u`` must be a vector).
+    unit : str, optional
+        The gain's own unit: the output's unit is the input's times it
+        (``Gain(ki, unit="1/s")`` turns an error in ``"rad"`` into ``"rad/s"``).
+        By default the output keeps the input's unit.
 
     Notes
     -----
@@ -40,15 +48,22 @@ class Gain(Block):
     nothing else; blocks with memory downstream decide how to treat it.
     """
 
-    def __init__(self, k: Any, *, matrix: bool = False, period: float | None = None) -> None:
+    def __init__(self, k: Any, *, matrix: bool = False, unit: str | None = None, period: float | None = None) -> None:
         super().__init__(period=period)
         self.matrix = flag(self, "matrix", matrix)
         self.k = finite_array(self, "k", k, ndim=2 if self.matrix else None)
-        self.add_input("u", ANY)
+        self.unit = unit_arg(self, "unit", unit, optional=True)
+        overrides: dict[str, Any] = {"wrapped": False}
+        if self.unit is not None:
+            try:
+                unit_product("1", self.unit)  # refuse a unit that cannot be multiplied, now
+            except ValueError as exc:
+                raise ValueError(f"Gain: unit: {exc}") from None
+            overrides["unit"] = partial(unit_product, b=self.unit)
         if matrix:
-            self.add_output("y", like="u", shape=(self.k.shape[0],), wrapped=False)
-        else:
-            self.add_output("y", like="u", wrapped=False)
+            overrides["shape"] = (self.k.shape[0],)
+        self.add_input("u", ANY)
+        self.add_output("y", like="u", **overrides)
 
     def setup(self) -> None:
         shape = self.u.spec.shape
@@ -56,6 +71,12 @@ class Gain(Block):
             raise self._fail(f"a {self.k.shape} matrix gain needs an input of shape ({self.k.shape[1]},), got {shape}")
         if not self.matrix and np.broadcast_shapes(self.k.shape, shape) != shape:
             raise self._fail(f"gain of shape {self.k.shape} does not broadcast to the input shape {shape}")
+
+    def linear_feedthrough(self) -> dict[tuple[str, str], np.ndarray]:
+        """``y = K u``: ``K`` is the matrix, or the element-wise gain on the diagonal."""
+        if self.matrix:
+            return {("y", "u"): self.k}
+        return {("y", "u"): np.diag(np.broadcast_to(self.k, self.u.spec.shape).reshape(-1))}
 
     def output(self, k: int) -> None:
         # bad samples pass through (documented): no NumPy warning for inf * 0 or inf - inf
@@ -96,6 +117,11 @@ class Sum(Block):
         for port, _ in self._terms[1:]:
             if port.spec.shape != first.shape or port.spec.unit != first.unit:
                 raise self._fail(f"all inputs must share shape and unit; u0 is {first}, {port.name} is {port.spec}")
+
+    def linear_feedthrough(self) -> dict[tuple[str, str], np.ndarray]:
+        """``y = sum(±u_i)``: plus or minus the identity per input."""
+        eye = np.eye(self.y.value.size)
+        return {("y", port.name): eye if positive else -eye for port, positive in self._terms}
 
     @np.errstate(invalid="ignore", over="ignore")  # bad samples pass through (documented), silently
     def output(self, k: int) -> None:

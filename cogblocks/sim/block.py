@@ -12,6 +12,7 @@ import numpy as np
 from cogblocks.sim.errors import DiagramError
 from cogblocks.sim.ports import Input, Output
 from cogblocks.sim.signal import Signal
+from cogblocks.sim.snapshot import value_problem
 
 __all__ = ["Block"]
 
@@ -226,6 +227,19 @@ class Block:
     def update(self, k: int) -> None:
         """Advance the state from tick ``k`` to the block's next tick."""
 
+    def linear_feedthrough(self) -> Mapping[tuple[str, str], Any] | None:
+        """Direct-feedthrough matrices, for a block whose outputs are affine in its feedthrough inputs.
+
+        Override it in a block whose every output is ``y = c + sum(D[y, u] @ u)`` over its
+        feedthrough inputs ``u``, with ``c`` computed from the state and the other inputs and
+        each ``D`` constant for the run. Return ``{(output, input): D}``, ``D`` of shape
+        (output size, input size) on the flattened signals; omitted pairs are zero. Called
+        after :meth:`setup`. An algebraic loop made only of such blocks is solved exactly at
+        each tick; the default, ``None``, says the block is not linear, and a loop through it
+        is refused.
+        """
+        return None
+
     def reset(self) -> None:
         """Restore the declared state and the outputs to their initial values."""
         for name, init in self._state_init.items():
@@ -244,20 +258,42 @@ class Block:
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restore what :meth:`state_dict` returned."""
+        """Restore what :meth:`state_dict` returned; a snapshot that does not fit changes nothing.
+
+        Raises
+        ------
+        ValueError
+            Naming the state entry or output whose name, shape or dtype does not fit.
+        """
+        problem = self._state_dict_problem(state)
+        if problem:
+            raise ValueError(f"{self.name or type(self).__name__}: {problem}")
+        for name, value in state["state"].items():
+            self._restore(name, value)
+        for name, value in state["outputs"].items():
+            self._outputs[name].value[...] = value
+
+    def _state_dict_problem(self, state: Any) -> str | None:
+        """What makes ``state`` unfit for :meth:`load_state_dict`, or None."""
         try:
             saved_state, saved_outputs = state["state"], state["outputs"]
-        except (KeyError, TypeError) as exc:
-            raise ValueError(f"{self.name or type(self).__name__}: not a block state dict") from exc
+        except (KeyError, TypeError):
+            return "not a block state dict (a mapping with 'state' and 'outputs')"
         if set(saved_state) != set(self._state_init) or set(saved_outputs) != set(self._outputs):
-            raise ValueError(
-                f"{self.name or type(self).__name__}: state dict has state {sorted(saved_state)} and outputs "
-                f"{sorted(saved_outputs)}, the block has {sorted(self._state_init)} and {sorted(self._outputs)}"
+            return (
+                f"state dict has state {sorted(saved_state)} and outputs {sorted(saved_outputs)}, "
+                f"the block has {sorted(self._state_init)} and {sorted(self._outputs)}"
             )
         for name, value in saved_state.items():
-            self._restore(name, value)
+            problem = value_problem(self.__dict__.get(name), self._state_init[name], value)
+            if problem:
+                return f"state {name!r} {problem}"
         for name, value in saved_outputs.items():
-            self._outputs[name].value[...] = value
+            arr = self._outputs[name].value
+            problem = value_problem(arr, arr, value)
+            if problem:
+                return f"output {name!r} {problem}"
+        return None
 
     def _restore(self, name: str, value: Any) -> None:
         """Set a declared state, in place where possible so outside references to it stay valid."""

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import difflib
 import math
+import os
+import threading
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -10,8 +13,11 @@ import numpy as np
 
 from cogblocks.sim.block import Block
 from cogblocks.sim.errors import DiagramError, SimulationError
+from cogblocks.sim.loops import order_blocks
+from cogblocks.sim.ownership import leaf_blocks, private_copy, running_plans
 from cogblocks.sim.ports import Input, Output
-from cogblocks.sim.signal import Signal
+from cogblocks.sim.snapshot import check_snapshot, load_snapshot, save_snapshot
+from cogblocks.sim.specs import check_driven, resolve_specs
 
 if TYPE_CHECKING:
     from cogblocks.sim.diagram import Diagram
@@ -30,6 +36,17 @@ class CompiledDiagram:
     the per-tick work is a precomputed list of bound methods, so a tick does no
     graph work and no dictionary look-ups.
 
+    A plan owns the blocks it runs. The latest plan of a diagram runs the
+    diagram's own blocks; compiling the diagram again moves the earlier plans
+    onto private copies of their blocks, with their state (see
+    :mod:`cogblocks.sim.ownership`), so plans of one diagram never share state.
+    A plan goes stale when its diagram changes (``add``, ``connect``,
+    ``expose_*``, ``replace``) and then refuses to run.
+
+    A plan is not thread-safe: run it from one thread at a time. Running it from
+    a second thread while a step or run is in progress raises
+    :class:`SimulationError` instead of silently losing ticks.
+
     Attributes
     ----------
     dt : float
@@ -38,12 +55,22 @@ class CompiledDiagram:
         Index of the next tick to run.
     blocks : dict
         Leaf blocks by dotted path, in execution order.
+    diagram : Diagram
+        The diagram the plan runs: ``source`` itself, or its private copy once
+        a later plan took over ``source``'s blocks.
+    source : Diagram
+        The diagram that was compiled.
     """
 
     def __init__(self, diagram: Diagram, dt: float = 0.01) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise DiagramError(f"the base step dt must be a positive number of seconds, got {dt!r}")
-        self.diagram = diagram
+        for plan in running_plans(diagram):
+            plan._hand_over()  # the earlier plan continues on a copy; this one takes the blocks
+        self.source = self.diagram = diagram
+        self._revision = diagram._revision
+        self._stale_reason: str | None = None
+        self._lock = threading.Lock()
         self.dt = float(dt)
         self.k = 0
         leaves: dict[str, Block] = {}
@@ -53,9 +80,8 @@ class CompiledDiagram:
         self._flatten(diagram, "", None, leaves, periods, drivers, external)
         self._ext_outputs = {name: self._leaf_output(diagram, name) for name in diagram._exposed_out}
         self._paths = {id(b): p for p, b in leaves.items()}
-        self._drivers = drivers
-        self._check_driven(leaves, drivers, external)
-        self._resolve_specs(leaves, drivers, external)
+        check_driven(leaves, drivers, external, self._name)
+        resolve_specs(diagram, leaves, drivers, external, self._ext_outputs, self._name)
         ticks = self._periods(leaves, periods)
         for path, block in leaves.items():
             block.dt = ticks[path] * self.dt
@@ -64,12 +90,55 @@ class CompiledDiagram:
                 port.value = port.spec.zeros()
             block.setup()
         self._bind(leaves, drivers, external)
-        order = self._order(leaves, drivers)
+        order, self._loops = order_blocks(leaves, drivers, ticks, self._name)
         self.blocks = {p: leaves[p] for p in order}
         self._ticks = [ticks[p] for p in order]
         self._build_schedule()
         self._output_arrays = [(port, port.value) for b in self.blocks.values() for port in b._outputs.values()]
+        for block in leaf_blocks(diagram):
+            object.__setattr__(block, "_plan", self)
         self.reset()
+
+    @property
+    def current(self) -> bool:
+        """False once the compiled diagram has changed: the plan then refuses to run; compile again."""
+        return self.source._revision == self._revision
+
+    def _hand_over(self) -> None:
+        """Continue on a private copy of the blocks, state included: a new plan takes the diagram's blocks."""
+        if not self._lock.acquire(blocking=False):
+            raise SimulationError(
+                "cannot compile this diagram while an earlier plan of it is running (in another thread)"
+            )
+        try:
+            keep = (self, self._lock) if self.diagram is self.source else (self, self._lock, self.source)
+            moved = private_copy(dict(self.__dict__), self.diagram, keep)
+        except TypeError as exc:  # a block that cannot be copied: this plan ends here, and says why
+            self._revision = -1
+            self._stale_reason = (
+                f"a later compile of its diagram took over its blocks, and {exc}, so this plan could not "
+                "continue on a copy; use the later plan, or build one diagram per plan"
+            )
+        else:
+            moved["source"] = self.source
+            moved["_paths"] = {id(b): p for p, b in moved["blocks"].items()}
+            self.__dict__.update(moved)
+        finally:
+            self._lock.release()
+
+    def _enter(self) -> None:
+        """Take the plan for one step or run: refuse a stale plan and concurrent use."""
+        if self.source._revision != self._revision:
+            raise SimulationError(
+                self._stale_reason
+                or "the diagram changed (a block added, replaced or rewired) after this plan was compiled, so "
+                "the plan no longer runs it; compile it again (diagram.compile() or a new Simulator)"
+            )
+        if not self._lock.acquire(blocking=False):
+            raise SimulationError(
+                "this compiled diagram is already running (in another thread, or re-entered from a block); "
+                "a plan is not thread-safe: step it from one thread at a time, or compile one plan per thread"
+            )
 
     # -- flattening ----------------------------------------------------------
     def _flatten(self, d, prefix, period, leaves, periods, drivers, external) -> None:
@@ -110,76 +179,6 @@ class CompiledDiagram:
         return f"{self._paths[id(port.block)]}.{port.name}"
 
     # -- validation ----------------------------------------------------------
-    def _check_driven(self, leaves, drivers, external) -> None:
-        fed_externally = {inp for targets in external.values() for inp in targets}
-        missing = [
-            self._name(inp)
-            for block in leaves.values()
-            for inp in block._inputs.values()
-            if inp not in drivers and inp not in fed_externally and inp.default is None
-        ]
-        if missing:
-            raise DiagramError(
-                "unconnected input(s) with no default: "
-                + ", ".join(missing)
-                + "; connect them, expose them as diagram inputs, or give the port a default"
-            )
-
-    def _resolve_specs(self, leaves, drivers, external) -> None:
-        ext_specs = {inp: self.diagram._inputs[name].spec for name, targets in external.items() for inp in targets}
-
-        def source_spec(inp: Input) -> Signal | None:
-            if inp in drivers:
-                return drivers[inp].spec
-            if inp in ext_specs:
-                spec = ext_specs[inp]
-                return spec if spec.concrete else None
-            default = inp.default
-            return inp.declared.merge(
-                Signal(shape=default.shape, dtype=np.float64 if default.dtype.kind in "iuf" else default.dtype)
-            )
-
-        pending = [o for b in leaves.values() for o in b._outputs.values() if o.like is not None]
-        for out in pending:
-            out.spec = None
-        while pending:
-            progressed = []
-            for out in pending:
-                spec = source_spec(out.block._inputs[out.like])
-                if spec is not None:
-                    # an override may be a function of the copied field (an integrator's unit)
-                    out.spec = spec.with_(
-                        **{
-                            field: value(getattr(spec, field)) if callable(value) else value
-                            for field, value in out.like_overrides.items()
-                        }
-                    )
-                    progressed.append(out)
-            if not progressed:
-                names = ", ".join(self._name(o) for o in pending)
-                raise DiagramError(
-                    f"cannot infer the spec of {names}: their inputs are fed only by other generic blocks "
-                    "(a loop); give one of them an explicit spec (shape=..., unit=...)"
-                )
-            pending = [o for o in pending if o not in progressed]
-        for block in leaves.values():
-            for inp in block._inputs.values():
-                spec = source_spec(inp)
-                if spec is None:
-                    raise DiagramError(
-                        f"input {self._name(inp)} is fed by a diagram input whose spec is not fully known "
-                        f"({inp.declared}); give expose_input(..., spec=Signal(...))"
-                    )
-                src_name = self._name(drivers[inp]) if inp in drivers else "its source"
-                problem = spec.mismatch(inp.declared)
-                if problem:
-                    raise DiagramError(
-                        f"cannot connect {src_name} {spec} to {self._name(inp)} {inp.declared}: {problem}"
-                    )
-                inp.spec = inp.declared.merge(spec)
-        for name, port in self.diagram._outputs.items():
-            port.spec = self._ext_outputs[name].spec
-
     def _periods(self, leaves, periods) -> dict[str, int]:
         ticks: dict[str, int] = {}
         for path, period in periods.items():
@@ -218,57 +217,17 @@ class CompiledDiagram:
                     inp.value = np.array(np.broadcast_to(inp.default, inp.spec.shape), dtype=inp.spec.dtype)
                     inp.driven = False
 
-    def _order(self, leaves, drivers) -> list[str]:
-        """Topological order over feedthrough wires; refuse algebraic loops."""
-        paths = list(leaves)
-        index = {id(b): p for p, b in leaves.items()}
-        deps: dict[str, list[tuple[str, Input]]] = {p: [] for p in paths}
-        for inp, src in drivers.items():
-            if inp.feedthrough:
-                deps[index[id(inp.block)]].append((index[id(src.block)], inp))
-        order: list[str] = []
-        state: dict[str, int] = {}  # 1 = on the stack, 2 = placed
-        for root in paths:
-            if root in state:
-                continue
-            stack: list[tuple[str, int]] = [(root, 0)]
-            state[root] = 1
-            while stack:
-                node, i = stack[-1]
-                if i < len(deps[node]):
-                    stack[-1] = (node, i + 1)
-                    nxt, _ = deps[node][i]
-                    if state.get(nxt) == 1:
-                        raise DiagramError("algebraic loop: " + self._describe_cycle(stack, nxt, deps))
-                    if nxt not in state:
-                        state[nxt] = 1
-                        stack.append((nxt, 0))
-                else:
-                    stack.pop()
-                    state[node] = 2
-                    order.append(node)
-        return order
-
-    def _describe_cycle(self, stack, start, deps) -> str:
-        nodes = [n for n, _ in stack]
-        cycle = nodes[nodes.index(start) :]
-        hops = []
-        # the stack goes from a block to the block it depends on: reverse for signal flow
-        for a, b in zip(cycle, cycle[1:] + [start], strict=True):
-            inp = next(i for src, i in deps[a] if src == b)
-            hops.append(f"{self._name(self._drivers[inp])} -> {self._name(inp)}")
-        hops.reverse()
-        return (
-            ", ".join(hops) + " (every block on it feeds its input straight to its output; break it with a UnitDelay)"
-        )
-
     # -- schedule ------------------------------------------------------------
     def _build_schedule(self) -> None:
         blocks = list(self.blocks.values())
-        # blocks that only hold a value (Constant) or are only read (Probe) need no call
-        self._outs_all = [
-            (n, b.output) for n, b in zip(self._ticks, blocks, strict=True) if type(b).output is not Block.output
-        ]
+        on_loops = {id(b) for loop in self._loops.values() for b in loop.blocks}
+        self._outs_all = []
+        for n, (path, b) in zip(self._ticks, self.blocks.items(), strict=True):
+            if path in self._loops:  # a loop's blocks are computed together, by its solver
+                self._outs_all.append((n, self._loops[path].output))
+            elif id(b) not in on_loops and type(b).output is not Block.output:
+                # blocks that only hold a value (Constant) or are only read (Probe) need no call
+                self._outs_all.append((n, b.output))
         self._upds_all = [(n, b.update) for n, b in zip(self._ticks, blocks, strict=True) if b.stateful]
         hyper = 1
         for n in set(self._ticks):
@@ -309,11 +268,9 @@ class CompiledDiagram:
 
     def set_inputs(self, **inputs: Any) -> None:
         """Write the top-level diagram inputs for the next tick."""
+        self._check_input_names(inputs)
         for name, value in inputs.items():
-            try:
-                arr = self._external[name]
-            except KeyError:
-                raise KeyError(f"the diagram has no input {name!r}; its inputs are {list(self._external)}") from None
+            arr = self._external[name]
             given = np.asarray(value)
             if given.shape != arr.shape:
                 # no silent broadcasting: a scalar for a vector is almost always a wiring mistake
@@ -331,30 +288,46 @@ class CompiledDiagram:
                     f"input {name!r} expects {arr.dtype} values of shape {arr.shape}, got {value!r}"
                 ) from exc
 
+    def _check_input_names(self, inputs: Mapping[str, Any]) -> None:
+        for name in inputs:
+            if name not in self._external:
+                close = difflib.get_close_matches(name, self._external, n=1, cutoff=0.5)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise KeyError(
+                    f"the diagram has no input {name!r}{hint}; its inputs are {list(self._external)}"
+                    + ("" if self._external else " (expose one with Diagram.expose_input)")
+                )
+
     def step(self, **inputs: Any) -> dict[str, Any]:
         """Run one tick with the given top-level inputs; return the top-level outputs.
 
         Inputs not given keep their previous value. Outputs are copies: scalars as
         ``float``, vectors as arrays. This is the call to make inside a live loop.
         """
-        missing = [n for n in self._external if n not in inputs and self.k == 0]
-        if missing:
-            raise ValueError(f"the first step needs every diagram input; missing {missing}")
-        self.set_inputs(**inputs)
-        outs, upds = self._tick_functions()(self.k)
-        k = self.k
-        for f in outs:
-            f(k)
-        result = {
-            name: (port.value.item() if port.value.ndim == 0 else port.value.copy())
-            for name, port in self._ext_outputs.items()
-        }
-        for f in upds:
-            f(k)
-        self.k = k + 1
-        if k == 0:
-            self._check_outputs_in_place()
-        return result
+        self._enter()
+        try:
+            self._check_input_names(inputs)
+            k = self.k
+            if k == 0:
+                missing = [n for n in self._external if n not in inputs]
+                if missing:
+                    raise ValueError(f"the first step needs every diagram input; missing {missing}")
+            self.set_inputs(**inputs)
+            outs, upds = self._tick_functions()(k)
+            for f in outs:
+                f(k)
+            result = {
+                name: (port.value.item() if port.value.ndim == 0 else port.value.copy())
+                for name, port in self._ext_outputs.items()
+            }
+            for f in upds:
+                f(k)
+            self.k = k + 1
+            if k == 0:
+                self._check_outputs_in_place()
+            return result
+        finally:
+            self._lock.release()
 
     def _check_outputs_in_place(self) -> None:
         for port, arr in self._output_arrays:
@@ -371,14 +344,18 @@ class CompiledDiagram:
         feed: Callable[[int], None] | None = None,
     ) -> None:
         """Run ``n_steps`` ticks; ``feed(k)`` writes inputs before, ``record(k)`` reads after the outputs."""
-        tick = self._tick_functions()
-        k = self.k
-        end = k + n_steps
-        if k == 0 and n_steps > 0:
-            self._run_ticks(tick, 0, 1, record, feed)
-            self._check_outputs_in_place()
-            k = 1
-        self._run_ticks(tick, k, end, record, feed)
+        self._enter()
+        try:
+            tick = self._tick_functions()
+            k = self.k
+            end = k + n_steps
+            if k == 0 and n_steps > 0:
+                self._run_ticks(tick, 0, 1, record, feed)
+                self._check_outputs_in_place()
+                k = 1
+            self._run_ticks(tick, k, end, record, feed)
+        finally:
+            self._lock.release()
 
     def _run_ticks(self, tick, k: int, end: int, record, feed) -> None:
         # The hot loop: kept free of attribute look-ups and allocation.
@@ -408,11 +385,15 @@ class CompiledDiagram:
 
     def reset(self) -> None:
         """Restore every block to its initial state and rewind to tick 0."""
-        for block in self.blocks.values():
-            block.reset()
-        for arr in self._external.values():
-            arr[...] = 0
-        self.k = 0
+        self._enter()
+        try:
+            for block in self.blocks.values():
+                block.reset()
+            for arr in self._external.values():
+                arr[...] = 0
+            self.k = 0
+        finally:
+            self._lock.release()
 
     def state_dict(self) -> dict[str, Any]:
         """Snapshot: the tick counter, every block's state and outputs, the diagram inputs."""
@@ -423,16 +404,31 @@ class CompiledDiagram:
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restore a snapshot taken with :meth:`state_dict` on the same diagram."""
-        if set(state.get("blocks", {})) != set(self.blocks):
-            raise ValueError(
-                f"state dict is for blocks {sorted(state.get('blocks', {}))}, this diagram has {sorted(self.blocks)}"
-            )
-        for path, block_state in state["blocks"].items():
-            self.blocks[path].load_state_dict(block_state)
-        for name, value in state.get("inputs", {}).items():
-            self._external[name][...] = value
-        self.k = int(state["k"])
+        """Restore a snapshot taken with :meth:`state_dict` on the same diagram.
+
+        Every block path, state entry, output and input is checked (names, array
+        shapes and dtypes) before anything changes: a snapshot that does not fit
+        raises ``ValueError`` naming the block and the entry, and leaves the plan
+        as it was.
+        """
+        check_snapshot(self.blocks, self._external, state)
+        self._enter()
+        try:
+            for path, block_state in state["blocks"].items():
+                self.blocks[path].load_state_dict(block_state)
+            for name, value in state["inputs"].items():
+                self._external[name][...] = value
+            self.k = int(state["k"])
+        finally:
+            self._lock.release()
+
+    def save_state(self, path: str | os.PathLike) -> None:
+        """Write :meth:`state_dict` to the ``.npz`` file ``path`` (no pickle; see :mod:`cogblocks.sim.snapshot`)."""
+        save_snapshot(self.state_dict(), path)
+
+    def load_state(self, path: str | os.PathLike) -> None:
+        """Load a snapshot written by :meth:`save_state`, checked like :meth:`load_state_dict`."""
+        self.load_state_dict(load_snapshot(path))
 
     # -- looking things up ---------------------------------------------------
     def output_port(self, path: str) -> Output:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
@@ -18,6 +19,7 @@ __all__ = ["Diagram"]
 
 PortRef = Input | Output | str
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_REPR_BLOCKS = 12  # blocks listed by repr before "… n more"
 
 
 class Diagram(Block):
@@ -57,6 +59,16 @@ class Diagram(Block):
         self._exposed_in: dict[str, list[tuple[str, str]]] = {}
         self._exposed_out: dict[str, tuple[str, str]] = {}
         self._compiled: CompiledDiagram | None = None
+        # bumped by every change, here or in a sub-diagram: plans compiled before it are stale
+        self._revision = 0
+
+    def _changed(self) -> None:
+        """Note a change of this diagram: its plans and its ancestors' plans go stale."""
+        node: Diagram | None = self
+        while node is not None:
+            node._revision += 1
+            node._compiled = None
+            node = getattr(node, "_parent", None)
 
     # -- building ------------------------------------------------------------
     def add(self, name: str, block: Block, *, period: float | None = None) -> Block:
@@ -84,7 +96,7 @@ class Diagram(Block):
         block.name = name
         object.__setattr__(block, "_parent", self)
         self._children[name] = block
-        self._compiled = None
+        self._changed()
         return block
 
     def _all_blocks(self) -> Iterator[Block]:
@@ -173,7 +185,7 @@ class Diagram(Block):
                 _check_specs(f"{s_child}.{s_port.name}", s_port.spec, f"{d_child}.{d_port.name}", d_port.spec)
         for d_child, d_port in resolved:
             self._wires.append((s_child, s_port.name, d_child, d_port.name))
-        self._compiled = None
+        self._changed()
 
     def expose_input(self, name: str, *targets: PortRef, spec: Signal | None = None) -> Input:
         """Make ``name`` an input of this diagram, feeding the given child inputs.
@@ -196,7 +208,7 @@ class Diagram(Block):
             merged = merged.merge(d_port.spec)
         port = self.add_input(name, merged, feedthrough=True)
         self._exposed_in[name] = [(c, p.name) for c, p in resolved]
-        self._compiled = None
+        self._changed()
         return port
 
     def expose_output(self, name: str, source: PortRef) -> Output:
@@ -207,7 +219,7 @@ class Diagram(Block):
         self._outputs[name] = port
         object.__setattr__(self, name, port)
         self._exposed_out[name] = (s_child, s_port.name)
-        self._compiled = None
+        self._changed()
         return port
 
     def replace(self, path: str, block: Block) -> Block:
@@ -247,16 +259,18 @@ class Diagram(Block):
                     f"{d_child}.{d_port}",
                     parent._children[d_child]._inputs[d_port].spec,
                 )
-        node: Diagram | None = self
-        while node is not None:
-            node._compiled = None
-            node = getattr(node, "_parent", None)
-        parent._compiled = None
+        parent._changed()
         return old
 
     # -- compiling and running -----------------------------------------------
     def compile(self, dt: float = 0.01) -> CompiledDiagram:
         """Validate, flatten and order the diagram into a runnable plan.
+
+        The new plan runs this diagram's own blocks (the block objects you hold
+        show its state, and it becomes :attr:`compiled`); earlier plans of the
+        diagram continue on private copies of their blocks, with their state, so
+        plans of one diagram are independent. Changing the diagram makes its
+        plans stale: they refuse to run.
 
         Parameters
         ----------
@@ -297,6 +311,14 @@ class Diagram(Block):
         """Restore a snapshot taken with :meth:`state_dict`."""
         self.compiled.load_state_dict(state)
 
+    def save_state(self, path: str | os.PathLike) -> None:
+        """Write the snapshot of :attr:`compiled` to an ``.npz`` file; see :meth:`CompiledDiagram.save_state`."""
+        self.compiled.save_state(path)
+
+    def load_state(self, path: str | os.PathLike) -> None:
+        """Load a snapshot file into :attr:`compiled`; see :meth:`CompiledDiagram.load_state`."""
+        self.compiled.load_state(path)
+
     def output(self, k: int) -> None:  # pragma: no cover - diagrams are flattened
         raise RuntimeError("a Diagram is flattened at compile time and never runs as a block")
 
@@ -312,6 +334,30 @@ class Diagram(Block):
         from cogblocks.sim.render import to_dot
 
         return to_dot(self)
+
+    def draw(self, path: str | os.PathLike) -> None:
+        """Draw the diagram to a file, by its suffix; see :func:`cogblocks.sim.render.draw`.
+
+        ``.dot``/``.gv`` (Graphviz text) and ``.mmd`` (Mermaid text) are always
+        written; ``.svg``, ``.png`` and ``.pdf`` are rendered by Graphviz's ``dot``
+        program, and refused with a clear message when it is not installed.
+        """
+        from cogblocks.sim.render import draw
+
+        draw(self, path)
+
+    def __repr__(self) -> str:
+        label = f" {self.name!r}" if self.name else ""
+        shown = list(self._children.items())[:_REPR_BLOCKS]
+        blocks = ", ".join(
+            f"{name}: {type(b).__name__}" + (f" ({len(b._children)} blocks)" if isinstance(b, Diagram) else "")
+            for name, b in shown
+        )
+        if len(self._children) > len(shown):
+            blocks += f", … {len(self._children) - len(shown)} more"
+        ins = ", ".join(f"{n} -> {', '.join(f'{c}.{p}' for c, p in t)}" for n, t in self._exposed_in.items())
+        outs = ", ".join(f"{n} <- {c}.{p}" for n, (c, p) in self._exposed_out.items())
+        return f"<{type(self).__name__}{label} blocks=[{blocks}] inputs=({ins}) outputs=({outs})>"
 
 
 def _check_specs(src_name: str, src: Signal, dst_name: str, dst: Signal) -> None:

@@ -1,13 +1,55 @@
-"""Text renderings of a diagram: Mermaid and Graphviz DOT."""
+"""Renderings of a diagram: Mermaid and Graphviz DOT text, and pictures drawn by Graphviz."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from cogblocks.sim.diagram import Diagram
 
-__all__ = ["to_mermaid", "to_dot"]
+__all__ = ["draw", "to_dot", "to_mermaid"]
+
+_TEXT_SUFFIXES = {".dot": "dot", ".gv": "dot", ".mmd": "mermaid"}
+_PICTURE_SUFFIXES = (".svg", ".png", ".pdf")
+
+
+def draw(d: Diagram, path: str | os.PathLike) -> None:
+    """Draw ``d`` to ``path``, in the format its suffix names.
+
+    ``.dot``/``.gv`` and ``.mmd`` are written as Graphviz and Mermaid text;
+    ``.svg``, ``.png`` and ``.pdf`` are rendered by Graphviz's ``dot`` program.
+
+    Raises
+    ------
+    ValueError
+        For another suffix.
+    RuntimeError
+        For a picture when ``dot`` is not installed.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in _TEXT_SUFFIXES:
+        text = to_dot(d) if _TEXT_SUFFIXES[suffix] == "dot" else to_mermaid(d)
+        path.write_text(text + "\n", encoding="utf-8")
+        return
+    if suffix not in _PICTURE_SUFFIXES:
+        known = ", ".join([*_TEXT_SUFFIXES, *_PICTURE_SUFFIXES])
+        raise ValueError(f"cannot draw to {str(path)!r}: unknown suffix {suffix!r}; use one of {known}")
+    dot = shutil.which("dot")
+    if dot is None:
+        raise RuntimeError(
+            f"drawing {path.name} needs Graphviz's 'dot' program, which is not installed (e.g. apt install "
+            "graphviz, or conda install graphviz); without it, draw to a .dot or .mmd file, which is plain text"
+        )
+    done = subprocess.run(
+        [dot, f"-T{suffix[1:]}", "-o", str(path)], input=to_dot(d).encode(), capture_output=True, check=False
+    )
+    if done.returncode != 0:
+        raise RuntimeError(f"Graphviz dot failed to draw {path.name}: {done.stderr.decode(errors='replace').strip()}")
 
 
 def _node_id(path: str) -> str:

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-__all__ = ["Signal", "ANY"]
+__all__ = ["Signal", "ANY", "unit_product"]
+
+_FACTOR = re.compile(r"^([A-Za-z_%°µ][A-Za-z0-9_%°µ]*)(?:\^(-?\d+))?$")
 
 
 def _as_shape(shape: Any) -> tuple[int, ...] | None:
@@ -107,3 +110,39 @@ class Signal:
 
 #: An input spec that accepts any signal.
 ANY = Signal(shape=None, dtype=None, unit=None, wrapped=None)
+
+
+def _unit_powers(unit: str) -> dict[str, int]:
+    """``"mm/s^2"`` as ``{"mm": 1, "s": -2}``; ``"1"`` as ``{}``."""
+    powers: dict[str, int] = {}
+    numerator, *denominators = unit.replace(" ", "").split("/")
+    for sign, part in [(1, numerator), *((-1, d) for d in denominators)]:
+        for factor in part.split("*"):
+            if factor == "1" and sign == 1:
+                continue
+            match = _FACTOR.match(factor)
+            if match is None:
+                raise ValueError(
+                    f"cannot multiply the unit {unit!r}: {factor!r} is not a unit name with an integer power"
+                )
+            name, power = match.group(1), int(match.group(2) or 1)
+            powers[name] = powers.get(name, 0) + sign * power
+    return powers
+
+
+def unit_product(a: str, b: str) -> str:
+    """The unit of a product: ``unit_product("rad", "1/s") == "rad/s"``, ``unit_product("mm/s", "s") == "mm"``.
+
+    Units are names joined by ``*`` and ``/`` with optional integer powers (``"mm/s^2"``); ``"1"``
+    is dimensionless. Powers of a name add up and cancel.
+    """
+    powers = _unit_powers(a)
+    for name, power in _unit_powers(b).items():
+        powers[name] = powers.get(name, 0) + power
+
+    def show(name: str, power: int) -> str:
+        return name if power == 1 else f"{name}^{power}"
+
+    up = "*".join(show(n, p) for n, p in powers.items() if p > 0) or "1"
+    down = "".join("/" + show(n, -p) for n, p in powers.items() if p < 0)
+    return up + down

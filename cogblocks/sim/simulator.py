@@ -41,7 +41,10 @@ class Simulator:
     Notes
     -----
     Successive :meth:`run` calls continue from where the previous one stopped;
-    call :meth:`reset` to start again from tick 0.
+    call :meth:`reset` to start again from tick 0. Two simulators of one diagram
+    are independent (the newer runs the diagram's blocks, the older continues
+    on a copy; see :meth:`Diagram.compile`); run one simulator from one thread
+    at a time.
     """
 
     def __init__(
@@ -65,13 +68,11 @@ class Simulator:
         self.progress = progress
         self._probes = self._resolve_probes(probes)
 
-    def _resolve_probes(self, probes) -> dict[str, tuple[np.ndarray, str]]:
+    def _resolve_probes(self, probes) -> dict[str, str | None]:
+        """Probe names mapped to output paths, or to None for a ``Probe`` block (recorded at its input)."""
         from cogblocks.sim.probe import Probe
 
-        found: dict[str, tuple[np.ndarray, str]] = {}
-        for path, block in self.compiled.blocks.items():
-            if isinstance(block, Probe):
-                found[path] = (block.u.value, block.u.spec.unit or "")
+        found: dict[str, str | None] = {path: None for path, b in self.compiled.blocks.items() if isinstance(b, Probe)}
         if probes is None:
             return found
         pairs = probes.items() if isinstance(probes, Mapping) else ((p, p) for p in probes)
@@ -79,11 +80,20 @@ class Simulator:
             if name in found:
                 raise DiagramError(f"probe name {name!r} is used twice")
             try:
-                port = self.compiled.output_port(path)
+                self.compiled.output_port(path)
             except KeyError as exc:
                 raise DiagramError(str(exc.args[0])) from None
-            found[name] = (port.value, port.spec.unit or "")
+            found[name] = path
         return found
+
+    def _probe_arrays(self) -> dict[str, tuple[np.ndarray, str]]:
+        """The recorded arrays and their units, looked up for each run (a plan may have moved to a copy)."""
+        compiled = self.compiled
+        ports = {
+            name: compiled.blocks[name].u if path is None else compiled.output_port(path)
+            for name, path in self._probes.items()
+        }
+        return {name: (port.value, port.spec.unit or "") for name, port in ports.items()}
 
     @property
     def dt(self) -> float:
@@ -104,8 +114,16 @@ class Simulator:
         return self.compiled.state_dict()
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restore a snapshot taken with :meth:`state_dict`."""
+        """Restore a snapshot taken with :meth:`state_dict`; one that does not fit changes nothing."""
         self.compiled.load_state_dict(state)
+
+    def save_state(self, path: str | os.PathLike) -> None:
+        """Write the snapshot to an ``.npz`` file; see :meth:`CompiledDiagram.save_state`."""
+        self.compiled.save_state(path)
+
+    def load_state(self, path: str | os.PathLike) -> None:
+        """Load a snapshot file written by :meth:`save_state`."""
+        self.compiled.load_state(path)
 
     def run(
         self,
@@ -113,8 +131,16 @@ class Simulator:
         *,
         n_steps: int | None = None,
         inputs: Mapping[str, Any] | None = None,
+        include_end: bool = False,
     ) -> Trace:
         """Run for ``duration`` seconds (``round(duration / dt)`` ticks) or ``n_steps`` ticks.
+
+        A run simulates *ticks*, not instants: ``run(duration=T)`` from time ``t0``
+        runs the ``T / dt`` ticks at ``t0, t0 + dt, …, t0 + T - dt`` and stops
+        with the clock at ``t0 + T``, so the next run continues at ``t0 + T`` and
+        two runs of ``T`` give exactly one run of ``2 T``. (python-control and
+        Simulink report the end point too: ``include_end=True`` runs one more tick,
+        for ``T / dt + 1`` samples ending at ``t0 + T``.)
 
         Parameters
         ----------
@@ -125,6 +151,8 @@ class Simulator:
         inputs : mapping, optional
             Values of the top-level diagram inputs: an array with one row per tick,
             a callable ``f(t) -> value``, or a constant.
+        include_end : bool
+            With ``duration``, also run the tick at the end time ``t0 + T``.
 
         Returns
         -------
@@ -132,12 +160,17 @@ class Simulator:
             The probed signals at every ``decimate``-th tick of this run.
         """
         n = self._n_steps(duration, n_steps)
+        if include_end:
+            if duration is None:
+                raise ValueError("include_end applies to run(duration=...); with n_steps, ask for the ticks you want")
+            n += 1
         compiled = self.compiled
         k0 = compiled.k
         feed = self._feeder(inputs or {}, k0, n)
         n_rec = (n + self.decimate - 1) // self.decimate
-        buffers = {name: np.empty((n_rec,) + arr.shape, dtype=arr.dtype) for name, (arr, _) in self._probes.items()}
-        record = self._recorder(buffers, k0)
+        probes = self._probe_arrays()
+        buffers = {name: np.empty((n_rec,) + arr.shape, dtype=arr.dtype) for name, (arr, _) in probes.items()}
+        record = self._recorder(buffers, probes, k0)
         show = self.progress
         if show is None:
             show = n >= _PROGRESS_MIN_STEPS and sys.stderr.isatty() and not os.environ.get("CI")
@@ -155,7 +188,7 @@ class Simulator:
         else:
             compiled.advance(n, record, feed)
         t = (k0 + np.arange(n_rec) * self.decimate) * compiled.dt
-        return Trace(t, buffers, {name: unit for name, (_, unit) in self._probes.items()})
+        return Trace(t, buffers, {name: unit for name, (_, unit) in probes.items()})
 
     def _n_steps(self, duration: float | None, n_steps: int | None) -> int:
         if (duration is None) == (n_steps is None):
@@ -177,6 +210,7 @@ class Simulator:
         return n
 
     def _feeder(self, inputs: Mapping[str, Any], k0: int, n: int) -> Callable[[int], None] | None:
+        self.compiled._check_input_names(inputs)
         missing = [name for name in self.compiled.input_names if name not in inputs]
         if missing:
             raise ValueError(f"run() needs values for the diagram inputs {missing}")
@@ -185,13 +219,17 @@ class Simulator:
         feeders: list[Callable[[int], None]] = []
         dt = self.compiled.dt
         for name, source in inputs.items():
-            if name not in self.compiled.input_names:
-                raise KeyError(f"the diagram has no input {name!r}; its inputs are {list(self.compiled.input_names)}")
             target = self.compiled._external[name]
             if callable(source):
-                feeders.append(lambda k, f=source, a=target: a.__setitem__(Ellipsis, f(k * dt)))
+                feeders.append(_callable_feeder(name, source, target, dt))
                 continue
-            arr = np.asarray(source, dtype=target.dtype)
+            try:
+                arr = np.asarray(source, dtype=target.dtype)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(
+                    f"input {name!r}: expected {target.dtype} values of shape {target.shape} (a constant) or "
+                    f"({n}, {', '.join(map(str, target.shape))}) (one row per tick), got {source!r:.80}: {exc}"
+                ) from None
             if arr.shape == target.shape:
                 target[...] = arr
                 continue
@@ -212,8 +250,10 @@ class Simulator:
 
         return feed
 
-    def _recorder(self, buffers: dict[str, np.ndarray], k0: int) -> Callable[[int], None] | None:
-        pairs = [(buffers[name], arr) for name, (arr, _) in self._probes.items()]
+    def _recorder(
+        self, buffers: dict[str, np.ndarray], probes: dict[str, tuple[np.ndarray, str]], k0: int
+    ) -> Callable[[int], None] | None:
+        pairs = [(buffers[name], arr) for name, (arr, _) in probes.items()]
         if not pairs:
             return None
         d = self.decimate
@@ -232,3 +272,19 @@ class Simulator:
                     b[i] = a
 
         return record
+
+
+def _callable_feeder(name: str, f: Callable[[float], Any], target: np.ndarray, dt: float) -> Callable[[int], None]:
+    """Feed ``target`` with ``f(t)``, refusing a value of another shape (no silent broadcasting)."""
+    shape = target.shape
+
+    def feed(k: int) -> None:
+        value = f(k * dt)
+        if np.shape(value) != shape:
+            raise ValueError(
+                f"input {name!r}: the function returned a value of shape {np.shape(value)} at t = {k * dt:g} s, "
+                f"the input expects shape {shape}"
+            )
+        target[...] = value
+
+    return feed

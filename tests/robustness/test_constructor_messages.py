@@ -135,6 +135,7 @@ CASES = [
     case("Constant", "wrapped", "yes", "bool"),
     case("Gain", "k", [1.0, math.inf], "finite"),
     case("Gain", "matrix", "yes", "True or False", k=np.eye(2)),
+    case("Gain", "unit", 5, "string"),
     case("Sum", "signs", "+*", "'+' and '-'"),
     case("UnitDelay", "initial", math.nan, "finite"),
     case("UnitDelay", "shape", -1, "non-negative"),
