@@ -78,6 +78,31 @@ def _run_phase3d(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_phase1d(args: argparse.Namespace) -> int:
+    from cogblocks.phase.evaluation1d import EVALUATION_SEEDS, evaluate_grid, plot_grid
+
+    result = evaluate_grid(seeds=EVALUATION_SEEDS[: args.signals], duration=args.duration, workers=args.workers)
+    if args.plot:
+        plot_grid(result, args.plot)
+
+    def render(r: dict[str, Any]) -> str:
+        lines = ["1D phase estimation on simulated sensors (errors vs the true phase after two periods, rad)"]
+        lines.append("  rate Hz   scale  quant.  noise   mean    p95  held %  Hilbert mean")
+        for c in r["cells"]:
+            lines.append(
+                f"  {c['rate_hz']:7g} {c['scale']:7g} {c['quantised']:>7} {c['noise']:>6} {c['mean_error_rad']:6.3f} "
+                f"{c['p95_error_rad']:6.3f} {100 * c['held_share']:7.2f} {c['hilbert_mean_error_rad']:13.3f}"
+            )
+        lines.append(
+            f"worst: mean {r['worst_mean_error_rad']:.3f} rad, p95 {r['worst_p95_error_rad']:.3f} rad, "
+            f"held {100 * r['worst_held_share']:.2f} %"
+        )
+        return "\n".join(lines)
+
+    _print_result(result, args.json, render)
+    return 0
+
+
 def _run_amplification(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.amplification import PAPER, plot_amplification, run_amplification
 
@@ -142,6 +167,13 @@ def _build_parser() -> argparse.ArgumentParser:
     phase3d.add_argument("--seed", type=int, default=0, help="seed of the trajectories (default 0)")
     _common(phase3d)
     phase3d.set_defaults(handler=_run_phase3d)
+
+    phase1d = targets.add_parser("phase1d", help="1D phase estimation over sensor rates, units, quantisation, noise")
+    phase1d.add_argument("--signals", type=int, default=10, help="seeded signals per cell (default 10, at most 10)")
+    phase1d.add_argument("--duration", type=float, default=40.0, help="seconds per signal (default 40)")
+    phase1d.add_argument("--workers", type=int, default=2, help="processes sharing the grid (default 2)")
+    _common(phase1d)
+    phase1d.set_defaults(handler=_run_phase1d)
 
     amplification = targets.add_parser(
         "amplification", help="PoP of Amplification: encode fear in held-out no-fear movements, with and without RL"

@@ -6,7 +6,8 @@ import numpy as np
 
 from cogblocks.blocks import LowPass
 from cogblocks.phase.algorithm1 import Algorithm1Phase
-from cogblocks.sensing import KalmanEstimator
+from cogblocks.phase.gate import SpikeGate
+from cogblocks.phase.scaled_kalman import ScaledKalman
 from cogblocks.sim import Diagram
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
@@ -90,8 +91,12 @@ class PhaseEstimator(Diagram):
         centre_periods: int = 2,
         accel_window: float = 0.05,
         min_dropout: float = 0.03,
+        dropout_period: float = 0.25,
+        dropout_steps: float = 3.0,
         holdoff: float = 0.2,
+        max_coast: float = 2.0,
         max_period: float = 5.0,
+        spike_factor: float = 5.0,
         compensate: bool = True,
         front_end: str = "lowpass",
         period: float | None = None,
@@ -108,24 +113,30 @@ class PhaseEstimator(Diagram):
             centre_periods=centre_periods,
             accel_window=accel_window,
             min_dropout=min_dropout,
+            dropout_period=dropout_period,
+            dropout_steps=dropout_steps,
             holdoff=holdoff,
+            max_coast=max_coast,
             max_period=max_period,
             cutoff=cutoff if compensate and not kalman else None,
             order=order,
             derivative_inputs=kalman,
         )
+        gate = self.add("gate", SpikeGate(factor=spike_factor, unit=unit))
+        self.expose_input("p", gate.u)
         if kalman:
-            estimator = self.add("kalman", KalmanEstimator("ca", dims=1, unit=unit))
+            estimator = self.add("kalman", ScaledKalman(unit=unit))
             self.add("algorithm", algorithm)
+            self.connect(gate.y, estimator.p, algorithm.raw)
             self.connect(estimator.p_hat, algorithm.p)
             self.connect(estimator.v_hat, algorithm.v)
             self.connect(estimator.a_hat, algorithm.a)
-            self.expose_input("p", estimator.p, algorithm.raw)
         else:
             lowpass = self.add("lowpass", LowPass(cutoff, order))
             self.add("algorithm", algorithm)
+            self.connect(gate.y, lowpass.u, algorithm.raw)
             self.connect(lowpass.y, algorithm.p)
-            self.expose_input("p", lowpass.u, algorithm.raw)
         self.expose_output("theta", algorithm.theta)
+        self.expose_output("held", algorithm.held)
         self.expose_output("amp_p", algorithm.amp_p)
         self.expose_output("amp_v", algorithm.amp_v)
