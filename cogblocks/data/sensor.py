@@ -1,7 +1,7 @@
 """A realistic 1D position sensor watching a human oscillation: any rate, any unit, and the faults of real sensors.
 
 The movement is a human-like oscillation: its phase ``φ`` advances at a frequency that drifts slowly
-(log-normal Ornstein-Uhlenbeck, time constant 10 s) and also wobbles within a cycle; the position is
+(log-normal Ornstein-Uhlenbeck, time constant 10 s, smoothed by a spline through 0.1 s knots) and also wobbles within a cycle; the position is
 ``c(t) + A(t) w(φ)`` with a drifting centre and amplitude and a waveform ``w`` with small second and third
 harmonics. The sensor samples it at ``rate_hz`` with timestamp jitter, in a unit ``scale`` times the
 movement's natural one, adds white noise, quantises to a step (so that samples repeat in runs), and has
@@ -15,13 +15,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.interpolate
 
-from cogblocks.data.oscillation import _ou, _range
+from cogblocks.data.oscillation import _ou
 from cogblocks.sim.params import finite_number
 
 __all__ = ["SensorRecording", "simulate_sensor"]
 
 _OWNER = "simulate_sensor"
+_KNOT = 0.1  # s, grid of the slow drifts
 
 
 @dataclass
@@ -66,6 +68,18 @@ class SensorRecording:
     def bad(self) -> np.ndarray:
         """True where the sample is not a measurement of the movement (missing, frozen or spike)."""
         return self.missing | self.frozen | self.spike
+
+
+def _pair(name: str, value: object, high: float) -> tuple[float, float]:
+    """Validate a ``(lo, hi)`` pair with ``0 < lo <= hi <= high``."""
+    allowed = f"a pair (lo, hi) with 0 < lo <= hi <= {high:g}"
+    try:
+        lo, hi = (float(v) for v in value)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise ValueError(f"{_OWNER}: {name} must be {allowed}, got {value!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi <= high):
+        raise ValueError(f"{_OWNER}: {name} must be {allowed}, got {value!r}")
+    return lo, hi
 
 
 def simulate_sensor(
@@ -153,7 +167,7 @@ def simulate_sensor(
     if n < 16:
         raise ValueError(f"{_OWNER}: duration must hold at least 16 samples at {rate_hz} Hz, got {duration!r}")
     scale = finite_number(_OWNER, "scale", scale, low=0.0, low_open=True)
-    f_lo, f_hi = _range("freq_range", freq_range, 0.0, 0.25 * rate_hz)
+    f_lo, f_hi = _pair("freq_range", freq_range, 0.25 * rate_hz)
     freq_drift = finite_number(_OWNER, "freq_drift", freq_drift, low=0.0)
     cycle_wobble = finite_number(_OWNER, "cycle_wobble", cycle_wobble, low=0.0, high=0.5)
     amplitude_drift = finite_number(_OWNER, "amplitude_drift", amplitude_drift, low=0.0)
@@ -162,7 +176,7 @@ def simulate_sensor(
     quantisation = finite_number(_OWNER, "quantisation", quantisation, low=0.0)
     jitter = finite_number(_OWNER, "jitter", jitter, low=0.0, high=0.3)
     dropout_rate = finite_number(_OWNER, "dropout_rate", dropout_rate, low=0.0)
-    d_lo, d_hi = _range("dropout_duration", dropout_duration, 0.0)
+    d_lo, d_hi = _pair("dropout_duration", dropout_duration, np.inf)
     nan_share = finite_number(_OWNER, "nan_share", nan_share, low=0.0, high=1.0)
     spike_rate = finite_number(_OWNER, "spike_rate", spike_rate, low=0.0)
     rng = np.random.default_rng(seed)
@@ -171,8 +185,15 @@ def simulate_sensor(
     sub = 4
     fine_dt = dt / sub
     m = n * sub + sub
+    t_fine = np.arange(m) * fine_dt
+
+    def drift(tau: float, std: float) -> np.ndarray:
+        # an Ornstein-Uhlenbeck path on a 0.1 s grid, splined: slow and smooth, like a person's drift
+        knots = np.arange(int(np.ceil(t_fine[-1] / _KNOT)) + 2) * _KNOT
+        return scipy.interpolate.CubicSpline(knots, _ou(rng, len(knots), _KNOT, tau, std))(t_fine)
+
     base_f = rng.uniform(f_lo, f_hi)
-    slow_f = np.clip(base_f * np.exp(_ou(rng, m, fine_dt, 10.0, freq_drift)), f_lo, f_hi)
+    slow_f = np.clip(base_f * np.exp(drift(10.0, freq_drift)), f_lo, f_hi)
     psi = rng.uniform(0.0, 2.0 * np.pi)
     phi = np.empty(m)
     phi[0] = rng.uniform(0.0, 2.0 * np.pi)
@@ -180,8 +201,8 @@ def simulate_sensor(
         speed = 2.0 * np.pi * slow_f[k - 1] * (1.0 + cycle_wobble * np.cos(phi[k - 1] + psi))
         phi[k] = phi[k - 1] + speed * fine_dt
     base_a = rng.uniform(0.5, 2.0) * scale
-    amp = base_a * np.exp(_ou(rng, m, fine_dt, 8.0, amplitude_drift))
-    centre = rng.uniform(-5.0, 5.0) * scale + _ou(rng, m, fine_dt, 15.0, 0.2 * base_a)
+    amp = base_a * np.exp(drift(8.0, amplitude_drift))
+    centre = rng.uniform(-5.0, 5.0) * scale + drift(15.0, 0.2 * base_a)
     h = rng.uniform(0.0, harmonics, size=2)
     hpsi = rng.uniform(0.0, 2.0 * np.pi, size=2)
 
@@ -189,7 +210,6 @@ def simulate_sensor(
         return np.cos(x) + h[0] * np.cos(2.0 * x + hpsi[0]) + h[1] * np.cos(3.0 * x + hpsi[1])
 
     half_range = 0.5 * np.ptp(waveform(np.linspace(0.0, 2.0 * np.pi, 721)))
-    t_fine = np.arange(m) * fine_dt
     t = np.arange(n) * dt + np.clip(jitter * dt * rng.standard_normal(n), -0.45 * dt, 0.45 * dt)
     t = np.clip(t, 0.0, None)
     phase_t = np.interp(t, t_fine, phi)

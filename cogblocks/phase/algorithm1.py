@@ -17,6 +17,7 @@ from cogblocks.sim.params import finite_number, positive_int
 __all__ = ["Algorithm1Phase"]
 
 _ROUNDING = 1e-9  # relative size below which a centred position or velocity is rounding noise
+_SIGNIFICANT = 0.3  # share of the last amplitude of its kind an extremum must reach (velocity chatter near the centre)
 _DOUBT = tuple(0.125 * j for j in range(-4, 5))  # rad: the phase's own error, which rule (b) allows for
 
 
@@ -35,10 +36,11 @@ class Algorithm1Phase(Block):
        downward one with ``v < 0``, ``A_p+ ← |p|`` when ``v`` turns from ``≥ 0`` to ``< 0`` with
        ``a < 0`` (a maximum), ``A_p− ← |p|`` when ``v`` turns from ``< 0`` to ``≥ 0`` with ``a > 0``
        (a minimum). Two guards that the algorithm's own assumption (maxima and minima alternate)
-       justifies: an extremum counts only on its own side of the centre (``p > 0`` for a maximum),
-       and only after one of the other kind (velocity chatter at an extremum would otherwise give
+       justifies: an extremum counts only well on its own side of the centre (``p > 0.3 A_p+`` for
+       a maximum: a share of the running amplitude, so in any unit), and only after one of the other kind (velocity chatter at an extremum would otherwise give
        a second one a few samples later, and a period of a few samples);
-    4. estimates the frequency from the interval between two maxima or two minima;
+    4. estimates the frequency from the interval between two maxima or two minima (a frequency
+       not re-measured for 3 periods counts as stale for the drop-out rule (a) below);
     5. outputs ``θ = atan2(−v / A_v±, p / A_p±) + lead`` wrapped to ``[0, 2π)``, each amplitude chosen
        by the sign of ``p`` or ``v``; ``p = cos ωt`` gives ``θ = ωt``. ``lead`` is the phase lag,
        at the estimated frequency, of the Butterworth filter in front (when ``cutoff`` is given)
@@ -149,7 +151,7 @@ class Algorithm1Phase(Block):
         min_dropout: float = 0.03,
         dropout_period: float = 0.25,
         dropout_steps: float = 3.0,
-        holdoff: float = 0.2,
+        holdoff: float = 0.1,
         max_coast: float = 2.0,
         max_period: float = 5.0,
         cutoff: float | None = None,
@@ -203,6 +205,7 @@ class Algorithm1Phase(Block):
         self.add_state("t_max", -1.0)  # time of the last accepted maximum, -1 = none
         self.add_state("t_min", -1.0)
         self.add_state("omega", 0.0)  # estimated angular frequency, 0 = unknown
+        self.add_state("t_period", 0.0)  # when omega was last measured
         self.add_state("lead", 0.0)  # lag of the filtering in front at omega, added to the phase
         self.add_state("phase", 0.0)
         self.add_state("anchor", 0.0)  # the last measured phase, which extrapolation starts from
@@ -263,7 +266,10 @@ class Algorithm1Phase(Block):
         if primed and repeats == 0 and raw != self.raw_prev:
             step = min(step, abs(raw - self.raw_prev))
         run_phase = self.phase if repeats == 1 else self.run_phase
+        t = (k // self.every) * dt
         period = TWO_PI / self.omega if self.omega > 0.0 else self.max_period
+        if t - self.t_period > 3.0 * period:  # stale: rule (a) must not keep the period from being measured again
+            period = self.max_period
         frozen = repeats >= self._min_repeats and (
             repeats * dt > self.dropout_period * period
             or 0.5 * (self.amp[0] + self.amp[1]) * min(_swing(run_phase + d, self.omega * dt * repeats) for d in _DOUBT)
@@ -295,23 +301,24 @@ class Algorithm1Phase(Block):
         amp = self.amp.copy()
         known = self.known.copy()
         last, t_max, t_min, omega, lead = self.last_extremum, self.t_max, self.t_min, self.omega, self.lead
+        t_period = self.t_period
         if primed and not coasting:
-            t = (k // self.every) * dt
             pc_prev, v_prev = self.pc_prev, self.v_prev
             if pc_prev < 0.0 <= pc and v > 0.0:
                 amp[2], known[2] = v, True
             if pc_prev >= 0.0 > pc and v < 0.0:
                 amp[3], known[3] = -v, True
-            if v_prev >= 0.0 > v and a < 0.0 and pc > 0.0 and last != 1:
+            if v_prev >= 0.0 > v and a < 0.0 and pc > _SIGNIFICANT * amp[0] and last != 1:
                 amp[0], known[0], last = pc, True, 1
                 omega = self._frequency(t - t_max if t_max >= 0.0 else 0.0, omega)
                 t_max = t
-            if v_prev < 0.0 <= v and a > 0.0 and pc < 0.0 and last != -1:
+            if v_prev < 0.0 <= v and a > 0.0 and -pc > _SIGNIFICANT * amp[1] and last != -1:
                 amp[1], known[1], last = -pc, True, -1
                 omega = self._frequency(t - t_min if t_min >= 0.0 else 0.0, omega)
                 t_min = t
             if omega != self.omega:
                 lead = self._lag(omega)
+                t_period = t
             # provisional amplitudes: the largest magnitude seen so far on each half
             half = 0 if pc >= 0.0 else 1
             if not known[half]:
@@ -354,6 +361,7 @@ class Algorithm1Phase(Block):
             t_max,
             t_min,
             omega,
+            t_period,
             lead,
             phase,
             anchor,
@@ -386,7 +394,7 @@ class Algorithm1Phase(Block):
             _, self.phase, self.since, self.coast = pending
             return
         (raw, repeats, step, run_phase, pf, pc, v, n_pushed, total, amp, known) = pending[:11]
-        (last, t_max, t_min, omega, lead, phase, anchor, since, coast) = pending[11:]
+        (last, t_max, t_min, omega, self.t_period, lead, phase, anchor, since, coast) = pending[11:]
         self.primed = True
         self.raw_prev, self.repeats, self.step, self.p_prev, self.pc_prev, self.v_prev = raw, repeats, step, pf, pc, v
         self.run_phase = run_phase
