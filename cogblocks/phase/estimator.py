@@ -93,7 +93,7 @@ class PhaseEstimator(Diagram):
         min_dropout: float = 0.03,
         dropout_period: float = 0.25,
         dropout_steps: float = 3.0,
-        holdoff: float = 0.1,
+        holdoff: float = 0.2,
         max_coast: float = 2.0,
         max_period: float = 5.0,
         spike_factor: float = 5.0,

@@ -22,7 +22,7 @@ class ScaledKalman(KalmanEstimator):
 
     The defaults of ``KalmanEstimator`` are for arm movements of 100-300 mm. This block measures the
     signal's scale as the mean absolute deviation ``s`` of its valid samples from their mean over the
-    first ``warmup`` seconds (at least 2 samples), and uses ``q = q₀ (s / s₀)²`` and ``σ = σ₀ s / s₀``,
+    first ``warmup`` seconds (at least 2 samples; until the signal moves, its magnitude), and uses ``q = q₀ (s / s₀)²`` and ``σ = σ₀ s / s₀``,
     where ``q₀, σ₀`` are the mm defaults and ``s₀`` the scale they were chosen for (127 mm); the
     scale is then kept. So the filter means the same in any unit. Repeated samples are measurements
     (``freeze_frames=None``): a quantised sensor repeats on purpose, and the phase estimator behind
@@ -69,7 +69,11 @@ class ScaledKalman(KalmanEstimator):
         self._applied = ratio
 
     def output(self, k: int) -> None:
-        self._apply(self.ratio)
+        x = float(self.p.value)
+        if self.n_seen == 0 and math.isfinite(x) and 0.0 < abs(x) < 1e150:
+            self._apply(abs(x) / REFERENCE_SCALE)  # the filter starts at this sample: in its own scale
+        else:
+            self._apply(self.ratio)
         super().output(k)
 
     def update(self, k: int) -> None:
@@ -82,5 +86,7 @@ class ScaledKalman(KalmanEstimator):
         self.mean += (x - self.mean) / (n + 1)
         self.mad += (abs(x - self.mean) - self.mad) / (n + 1)
         self.n_seen = n + 1
-        if self.mad > 0.0:
-            self.ratio = self.mad / REFERENCE_SCALE
+        # until the signal has moved, its magnitude is the only scale there is (0 has none)
+        scale = self.mad if self.mad > 0.0 else abs(x)
+        if scale > 0.0:
+            self.ratio = scale / REFERENCE_SCALE
