@@ -1,7 +1,8 @@
 """A realistic 1D position sensor watching a human oscillation: any rate, any unit, and the faults of real sensors.
 
 The movement is a human-like oscillation: its phase ``φ`` advances at a frequency that drifts slowly
-(log-normal Ornstein-Uhlenbeck, time constant 10 s, smoothed by a spline through 0.1 s knots) and also wobbles within a cycle; the position is
+(log-normal Ornstein-Uhlenbeck, time constant 10 s,
+smoothed by a spline through 0.1 s knots) and also wobbles within a cycle; the position is
 ``c(t) + A(t) w(φ)`` with a drifting centre and amplitude and a waveform ``w`` with small second and third
 harmonics. The sensor samples it at ``rate_hz`` with timestamp jitter, in a unit ``scale`` times the
 movement's natural one, adds white noise, quantises to a step (so that samples repeat in runs), and has

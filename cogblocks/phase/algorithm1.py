@@ -37,7 +37,8 @@ class Algorithm1Phase(Block):
        ``a < 0`` (a maximum), ``A_p− ← |p|`` when ``v`` turns from ``< 0`` to ``≥ 0`` with ``a > 0``
        (a minimum). Two guards that the algorithm's own assumption (maxima and minima alternate)
        justifies: an extremum counts only well on its own side of the centre (``p > 0.3 A_p+`` for
-       a maximum: a share of the running amplitude, so in any unit), and only after one of the other kind (velocity chatter at an extremum would otherwise give
+       a maximum: a share of the running amplitude, so in any unit), and only after one of the other
+       kind (velocity chatter at an extremum would otherwise give
        a second one a few samples later, and a period of a few samples);
     4. estimates the frequency from the interval between two maxima or two minima (a frequency
        not re-measured for 3 periods counts as stale for the drop-out rule (a) below);

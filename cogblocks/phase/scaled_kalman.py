@@ -22,7 +22,8 @@ class ScaledKalman(KalmanEstimator):
 
     The defaults of ``KalmanEstimator`` are for arm movements of 100-300 mm. This block measures the
     signal's scale as the mean absolute deviation ``s`` of its valid samples from their mean over the
-    first ``warmup`` seconds (at least 2 samples; until the signal moves, its magnitude), and uses ``q = q₀ (s / s₀)²`` and ``σ = σ₀ s / s₀``,
+    first ``warmup`` seconds (at least 2 samples; until the signal moves, its magnitude), and uses
+    ``q = q₀ (s / s₀)²`` and ``σ = σ₀ s / s₀``,
     where ``q₀, σ₀`` are the mm defaults and ``s₀`` the scale they were chosen for (127 mm); the
     scale is then kept. So the filter means the same in any unit. Repeated samples are measurements
     (``freeze_frames=None``): a quantised sensor repeats on purpose, and the phase estimator behind
