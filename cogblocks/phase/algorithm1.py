@@ -347,27 +347,8 @@ class Algorithm1Phase(Block):
         self.amp_v.value[...] = amp[2:]
         self.held.value[...] = coasting
         self._pending = (
-            raw,
-            repeats,
-            step,
-            run_phase,
-            pf,
-            pc,
-            v,
-            n_pushed,
-            total,
-            amp,
-            known,
-            last,
-            t_max,
-            t_min,
-            omega,
-            t_period,
-            lead,
-            phase,
-            anchor,
-            since,
-            coast,
+            (raw, repeats, step, run_phase, pf, pc, v, n_pushed, total),
+            (amp, known, last, t_max, t_min, omega, t_period, lead, phase, anchor, since, coast),
         )
 
     def _frequency(self, interval: float, omega: float) -> float:
@@ -394,8 +375,8 @@ class Algorithm1Phase(Block):
         if pending[0] == "missing":
             _, self.phase, self.since, self.coast = pending
             return
-        (raw, repeats, step, run_phase, pf, pc, v, n_pushed, total, amp, known) = pending[:11]
-        (last, t_max, t_min, omega, self.t_period, lead, phase, anchor, since, coast) = pending[11:]
+        raw, repeats, step, run_phase, pf, pc, v, n_pushed, total = pending[0]
+        amp, known, last, t_max, t_min, omega, self.t_period, lead, phase, anchor, since, coast = pending[1]
         self.primed = True
         self.raw_prev, self.repeats, self.step, self.p_prev, self.pc_prev, self.v_prev = raw, repeats, step, pf, pc, v
         self.run_phase = run_phase
