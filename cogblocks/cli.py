@@ -57,7 +57,9 @@ def _run_sync(args: argparse.Namespace) -> int:
 def _run_phase3d(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.phase3d import phase3d_accuracy, plot_phase3d, run_phase_chain
 
-    result = phase3d_accuracy(n_trajectories=args.trajectories, seed=args.seed)
+    if not 30.0 <= args.rate <= 240.0:
+        raise ValueError(f"--rate must be between 30 and 240 Hz, got {args.rate:g}")
+    result = phase3d_accuracy(n_trajectories=args.trajectories, seed=args.seed, rate_hz=args.rate)
     result["chain"] = run_phase_chain(seed=args.seed)
     if args.plot:
         plot_phase3d(args.plot, seed=args.seed)
@@ -165,6 +167,7 @@ def _build_parser() -> argparse.ArgumentParser:
     phase3d = targets.add_parser("phase3d", help="3D phase estimation accuracy and the 3D phase chain")
     phase3d.add_argument("--trajectories", type=int, default=30, help="synthetic trajectories (default 30)")
     phase3d.add_argument("--seed", type=int, default=0, help="seed of the trajectories (default 0)")
+    phase3d.add_argument("--rate", type=float, default=100.0, help="sampling rate in Hz, 30-240 (default 100)")
     _common(phase3d)
     phase3d.set_defaults(handler=_run_phase3d)
 
