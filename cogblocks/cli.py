@@ -83,6 +83,11 @@ def _run_phase3d(args: argparse.Namespace) -> int:
 def _run_phase1d(args: argparse.Namespace) -> int:
     from cogblocks.phase.evaluation1d import EVALUATION_SEEDS, evaluate_grid, plot_grid
 
+    if not 1 <= args.signals <= len(EVALUATION_SEEDS) or not args.duration >= 10.0 or args.workers < 1:
+        raise ValueError(
+            f"--signals must be 1-{len(EVALUATION_SEEDS)}, --duration at least 10 s and --workers at least 1, "
+            f"got {args.signals}, {args.duration:g}, {args.workers}"
+        )
     result = evaluate_grid(seeds=EVALUATION_SEEDS[: args.signals], duration=args.duration, workers=args.workers)
     if args.plot:
         plot_grid(result, args.plot)

@@ -120,3 +120,18 @@ def test_a_tiny_grid_reports_every_cell():
     assert result["worst_held_share"] == max(c["held_share"] for c in result["cells"])
     with pytest.raises(ValueError, match=r"evaluate_grid: noises must be among \['high', 'low'\], got \('loud',\)"):
         evaluate_grid(noises=("loud",))
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["run", "phase1d", "--signals", "11"], "--signals must be 1-10, --duration at least 10 s"),
+        (["run", "phase1d", "--duration", "5"], "got 10, 5, 2"),
+        (["run", "phase3d", "--rate", "20"], "--rate must be between 30 and 240 Hz, got 20"),
+    ],
+)
+def test_cli_checks_its_grid_options(argv, message, capsys):
+    from cogblocks.cli import main
+
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
