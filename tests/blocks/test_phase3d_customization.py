@@ -47,3 +47,18 @@ def test_customization_is_checked():
         customize_reference(reference_primitive(20), reference_primitive(20), customization="similar")
     with pytest.raises(ValueError, match=r"ReferenceCustomizer: customization must be one of"):
         ReferenceCustomizer(reference_primitive(20), customization="rigid")
+
+
+def test_generator_speed_wobble_makes_the_speed_uneven_within_a_cycle():
+    from cogblocks.data.motion3d import generate_motion3d
+
+    plain = generate_motion3d(2, duration=20.0)
+    same = generate_motion3d(2, duration=20.0, speed_wobble=0.0)
+    np.testing.assert_array_equal(plain.position, same.position)  # the default keeps the random stream
+    uneven = generate_motion3d(2, duration=20.0, speed_wobble=0.3, period_drift=0.0, dropout_rate=0.0)
+    steady = generate_motion3d(2, duration=20.0, period_drift=0.0, dropout_rate=0.0)
+    speed = np.diff(np.unwrap(uneven.phase))
+    # fastest over slowest phase speed is (1 + 0.3) / (1 - 0.3) = 1.86; without the wobble it is ~1
+    assert speed.max() / speed.min() == pytest.approx(1.3 / 0.7, rel=0.05)
+    steady_speed = np.diff(np.unwrap(steady.phase))
+    assert steady_speed.max() / steady_speed.min() < 1.05
