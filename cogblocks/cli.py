@@ -65,7 +65,9 @@ def _run_sync(args: argparse.Namespace) -> int:
 def _run_phase3d(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.phase3d import phase3d_accuracy, plot_phase3d, run_phase_chain
 
-    result = phase3d_accuracy(n_trajectories=args.trajectories, seed=args.seed)
+    if not 30.0 <= args.rate <= 240.0:
+        raise ValueError(f"--rate must be between 30 and 240 Hz, got {args.rate:g}")
+    result = phase3d_accuracy(n_trajectories=args.trajectories, seed=args.seed, rate_hz=args.rate)
     result["chain"] = run_phase_chain(seed=args.seed)
     if args.plot:
         plot_phase3d(args.plot, seed=args.seed)
@@ -81,6 +83,36 @@ def _run_phase3d(args: argparse.Namespace) -> int:
             f"phase chain (3D → phase → L2 → 3D avatar, group 3): r {chain['r_mean']:.3f}, "
             f"|θ_L2 − θ_L0| mean {chain['mean_dev_rad']:.3f} rad, valid from {chain['valid_from_s']:.2f} s"
         )
+
+    _print_result(result, args.json, render)
+    return 0
+
+
+def _run_phase1d(args: argparse.Namespace) -> int:
+    from cogblocks.phase.evaluation1d import EVALUATION_SEEDS, evaluate_grid, plot_grid
+
+    if not 1 <= args.signals <= len(EVALUATION_SEEDS) or not args.duration >= 10.0 or args.workers < 1:
+        raise ValueError(
+            f"--signals must be 1-{len(EVALUATION_SEEDS)}, --duration at least 10 s and --workers at least 1, "
+            f"got {args.signals}, {args.duration:g}, {args.workers}"
+        )
+    result = evaluate_grid(seeds=EVALUATION_SEEDS[: args.signals], duration=args.duration, workers=args.workers)
+    if args.plot:
+        plot_grid(result, args.plot)
+
+    def render(r: dict[str, Any]) -> str:
+        lines = ["1D phase estimation on simulated sensors (errors vs the true phase after two periods, rad)"]
+        lines.append("  rate Hz   scale  quant.  noise   mean    p95  held %  Hilbert mean")
+        for c in r["cells"]:
+            lines.append(
+                f"  {c['rate_hz']:7g} {c['scale']:7g} {c['quantised']:>7} {c['noise']:>6} {c['mean_error_rad']:6.3f} "
+                f"{c['p95_error_rad']:6.3f} {100 * c['held_share']:7.2f} {c['hilbert_mean_error_rad']:13.3f}"
+            )
+        lines.append(
+            f"worst: mean {r['worst_mean_error_rad']:.3f} rad, p95 {r['worst_p95_error_rad']:.3f} rad, "
+            f"held {100 * r['worst_held_share']:.2f} %"
+        )
+        return "\n".join(lines)
 
     _print_result(result, args.json, render)
     return 0
@@ -183,8 +215,16 @@ def _build_parser() -> argparse.ArgumentParser:
     phase3d = targets.add_parser("phase3d", help="3D phase estimation accuracy and the 3D phase chain")
     phase3d.add_argument("--trajectories", type=int, default=30, help="synthetic trajectories (default 30)")
     phase3d.add_argument("--seed", type=int, default=0, help="seed of the trajectories (default 0)")
+    phase3d.add_argument("--rate", type=float, default=100.0, help="sampling rate in Hz, 30-240 (default 100)")
     _common(phase3d)
     phase3d.set_defaults(handler=_run_phase3d)
+
+    phase1d = targets.add_parser("phase1d", help="1D phase estimation over sensor rates, units, quantisation, noise")
+    phase1d.add_argument("--signals", type=int, default=10, help="seeded signals per cell (default 10, at most 10)")
+    phase1d.add_argument("--duration", type=float, default=40.0, help="seconds per signal (default 40)")
+    phase1d.add_argument("--workers", type=int, default=2, help="processes sharing the grid (default 2)")
+    _common(phase1d)
+    phase1d.set_defaults(handler=_run_phase1d)
 
     amplification = targets.add_parser(
         "amplification", help="PoP of Amplification: encode fear in held-out no-fear movements, with and without RL"

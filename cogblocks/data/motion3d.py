@@ -135,6 +135,7 @@ def generate_motion3d(
     dropout_rate: float = 0.2,
     dropout_samples: tuple[int, int] = (2, 8),
     n_reference: int = 200,
+    speed_wobble: float = 0.0,
 ) -> Motion3D:
     """Generate one performed 3D trajectory of the reference primitive.
 
@@ -173,6 +174,10 @@ def generate_motion3d(
         Shortest and longest drop-out in samples (1 <= shortest <= longest).
     n_reference : int
         Samples of the reference primitive returned with the data (>= 3).
+    speed_wobble : float
+        Uneven speed within a cycle, in [0, 0.5]: the phase advances at ``1 + speed_wobble · cos(φ + ψ)``
+        times its mean speed (ψ random; a cycle lasts ``1 / sqrt(1 − speed_wobble²)`` times longer).
+        0 (the default) draws nothing, so the trajectories of a seed are those of earlier versions.
 
     Returns
     -------
@@ -194,6 +199,7 @@ def generate_motion3d(
     rotation_deg = finite_number(owner, "rotation_deg", rotation_deg, low=0.0, high=180.0)
     translation_mm = finite_number(owner, "translation_mm", translation_mm, low=0.0)
     noise_mm = finite_number(owner, "noise_mm", noise_mm, low=0.0)
+    speed_wobble = finite_number(owner, "speed_wobble", speed_wobble, low=0.0, high=0.5)
     dropout_rate = finite_number(owner, "dropout_rate", dropout_rate, low=0.0)
     if not (isinstance(dropout_samples, tuple) and len(dropout_samples) == 2):
         raise ValueError(f"{owner}: dropout_samples must be a tuple (shortest, longest), got {dropout_samples!r}")
@@ -213,6 +219,8 @@ def generate_motion3d(
     phi_grid = np.linspace(0.0, _TWO_PI * n_cycles, _PHASE_GRID * n_cycles + 1)
     cycle_pos = phi_grid / _TWO_PI - 0.5
     period_of_phi = np.interp(cycle_pos, np.arange(n_cycles), cycle_period)
+    if speed_wobble > 0.0:  # drawn only then, so that the default trajectories keep their random stream
+        period_of_phi = period_of_phi / (1.0 + speed_wobble * np.cos(phi_grid + rng.uniform(0.0, _TWO_PI)))
     t_of_phi = cumulative_trapezoid(period_of_phi / _TWO_PI, phi_grid, initial=0.0)
     phi = np.interp(t, t_of_phi, phi_grid)
     amplitude = np.interp(phi / _TWO_PI - 0.5, np.arange(n_cycles), cycle_amplitude)

@@ -161,6 +161,7 @@ def phase3d_accuracy(
     n_trajectories: int = 30,
     seed: int = 0,
     duration: float = 30.0,
+    rate_hz: float = 100.0,
     **estimator_kwargs: Any,
 ) -> dict[str, Any]:
     """Accuracy of the online 3D phase estimator over seeded synthetic trajectories.
@@ -179,6 +180,8 @@ def phase3d_accuracy(
         ``numpy.random.SeedSequence(seed)``.
     duration : float
         Length of each trajectory in s (long enough for two cycles: >= 6 s).
+    rate_hz : float
+        Sampling rate of the trajectories in Hz (5-1000; 100 by default).
     **estimator_kwargs
         Passed to :class:`PhaseEstimator3D`.
 
@@ -195,10 +198,11 @@ def phase3d_accuracy(
     """
     n_trajectories = positive_int("phase3d_accuracy", "n_trajectories", n_trajectories)
     duration = finite_number("phase3d_accuracy", "duration", duration, low=6.0)
+    rate_hz = finite_number("phase3d_accuracy", "rate_hz", rate_hz, low=5.0, high=1000.0)
     online, versus_offline, offline = [], [], []
     first_errors, valid_counts, n_total = [], [], 0
     for child in np.random.SeedSequence(seed).spawn(n_trajectories):
-        motion = generate_motion3d(np.random.default_rng(child), duration=duration)
+        motion = generate_motion3d(np.random.default_rng(child), duration=duration, dt=1.0 / rate_hz)
         run = run_phase_estimator(motion, **estimator_kwargs)
         valid = run["valid"]
         offline_phase = offline_phase_pca_hilbert(motion.position)
@@ -222,6 +226,7 @@ def phase3d_accuracy(
         "n_trajectories": n_trajectories,
         "n_samples": int(e_online.size),
         "duration": duration,
+        "rate_hz": rate_hz,
         "seed": seed,
     }
 

@@ -9,9 +9,12 @@ import numpy as np
 from cogblocks.blocks.samples import plausible
 from cogblocks.blocks.specs import COUNT
 from cogblocks.sim import Block, Signal
-from cogblocks.sim.params import finite_array, finite_number
+from cogblocks.sim.params import finite_array, finite_number, one_of
 
-__all__ = ["ReferenceCustomizer", "customize_reference", "kabsch_rotation"]
+__all__ = ["CUSTOMIZATIONS", "ReferenceCustomizer", "customize_reference", "kabsch_rotation"]
+
+#: How the reference is fitted to a period: a least-squares linear map, or the deliverable's scale-then-rotate.
+CUSTOMIZATIONS = ("affine", "deliverable")
 
 # A degenerate reference axis: its spread is below this share of the largest spread.
 _DEGENERATE = 1e-9
@@ -48,17 +51,24 @@ def kabsch_rotation(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return v @ u.T
 
 
-def customize_reference(reference: Any, period: Any, dt: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def customize_reference(
+    reference: Any, period: Any, dt: float = 1.0, *, customization: str = "affine"
+) -> tuple[np.ndarray, np.ndarray]:
     """Fit the reference motion to one recorded period: the customised reference γ^c (section 6.1.2 b).
 
     1. Resample the closed reference curve to the period's number of samples ``M`` by linear
        interpolation (sample ``j`` sits at phase ``2π j / M``).
     2. Centre both curves.
-    3. Scale the reference along each axis by ``σ(period) / σ(reference)``; an axis along which the
-       reference does not move keeps a factor of 1 (the ratio is undefined there, and the axis has
-       nothing to scale).
-    4. Rotate it by the proper rotation of :func:`kabsch_rotation` (no reflection).
-    5. Move it to the period's centroid.
+    3. ``customization="affine"`` (default): map the reference by the linear map ``A`` that best
+       fits the period sample by sample, ``min_A Σ_j ‖A q_j − p_j‖²`` (least squares; minimum norm
+       along an axis the reference does not move along). Any rotation (0-180°) and any scale, per
+       axis of the reference or of the world, is recovered exactly.
+       ``customization="deliverable"``: scale the reference along each world axis by
+       ``σ(period) / σ(reference)`` (an axis along which the reference does not move keeps a
+       factor of 1), then rotate it by the proper rotation of :func:`kabsch_rotation`. The
+       spreads are compared before the rotation is found, which distorts the fit under large
+       rotations; kept for reproduction.
+    4. Move it to the period's centroid.
 
     Velocities are backward differences along the closed curve (the first sample's predecessor is
     the last), divided by ``dt``.
@@ -71,6 +81,8 @@ def customize_reference(reference: Any, period: Any, dt: float = 1.0) -> tuple[n
         The recorded period γ_ℓ in mm (M >= 2).
     dt : float
         Sampling time of the period in s (> 0); ``1`` gives velocities in mm per sample.
+    customization : {"affine", "deliverable"}
+        How the reference is fitted (step 3).
 
     Returns
     -------
@@ -91,10 +103,10 @@ def customize_reference(reference: Any, period: Any, dt: float = 1.0) -> tuple[n
     ref = _as_curve(owner, "reference", reference, 2)
     per = _as_curve(owner, "period", period, 2)
     dt = finite_number(owner, "dt", dt, low=0.0, low_open=True)
-    return _customize(ref, per, dt)
+    return _customize(ref, per, dt, one_of(owner, "customization", customization, CUSTOMIZATIONS))
 
 
-def _customize(ref: np.ndarray, per: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def _customize(ref: np.ndarray, per: np.ndarray, dt: float, customization: str) -> tuple[np.ndarray, np.ndarray]:
     """:func:`customize_reference` on checked arrays (the block calls this once per period)."""
     n, m = len(ref), len(per)
     at = np.arange(m) * (n / m)
@@ -104,12 +116,16 @@ def _customize(ref: np.ndarray, per: np.ndarray, dt: float) -> tuple[np.ndarray,
     q = resampled - resampled.mean(axis=0)
     centroid = per.mean(axis=0)
     p = per - centroid
-    sd_ref, sd_per = q.std(axis=0), p.std(axis=0)
-    moving = sd_ref > _DEGENERATE * max(float(sd_ref.max()), 1.0)
-    scale = np.ones(3)
-    scale[moving] = sd_per[moving] / sd_ref[moving]
-    q *= scale
-    positions = q @ kabsch_rotation(q, p).T + centroid
+    if customization == "affine":
+        a_t, *_ = np.linalg.lstsq(q, p, rcond=None)  # q @ a_t ≈ p
+        positions = q @ a_t + centroid
+    else:
+        sd_ref, sd_per = q.std(axis=0), p.std(axis=0)
+        moving = sd_ref > _DEGENERATE * max(float(sd_ref.max()), 1.0)
+        scale = np.ones(3)
+        scale[moving] = sd_per[moving] / sd_ref[moving]
+        q *= scale
+        positions = q @ kabsch_rotation(q, p).T + centroid
     velocities = (positions - np.roll(positions, 1, axis=0)) / dt
     return positions, velocities
 
@@ -139,6 +155,8 @@ class ReferenceCustomizer(Block):
     ----------
     reference : array_like, shape (N, 3)
         The reference motion γ_ref, one cycle from phase 0, in mm (N >= 2).
+    customization : {"affine", "deliverable"}
+        How the reference is fitted, see :func:`customize_reference`.
 
     Notes
     -----
@@ -146,9 +164,10 @@ class ReferenceCustomizer(Block):
     coordinate is not fitted; the previous customised reference holds.
     """
 
-    def __init__(self, reference: Any, *, period: float | None = None) -> None:
+    def __init__(self, reference: Any, *, customization: str = "affine", period: float | None = None) -> None:
         super().__init__(period=period)
         self.reference = _as_curve("ReferenceCustomizer", "reference", reference, 2)
+        self.customization = one_of(self, "customization", customization, CUSTOMIZATIONS)
         self.add_input("last_period", Signal(shape=None, unit="mm"))
         self.add_input("last_length", COUNT)
         self.add_input("period_count", COUNT)
@@ -169,7 +188,7 @@ class ReferenceCustomizer(Block):
         m = int(self.last_length.value)
         if m < 2 or not plausible(self.last_period.value[:m]):
             return
-        positions, velocities = _customize(self.reference, self.last_period.value[:m], self.dt)
+        positions, velocities = _customize(self.reference, self.last_period.value[:m], self.dt, self.customization)
         self.positions.value[:m] = positions
         self.positions.value[m:] = 0.0
         self.velocities.value[:m] = velocities

@@ -6,7 +6,8 @@ import numpy as np
 
 from cogblocks.blocks import LowPass
 from cogblocks.phase.algorithm1 import Algorithm1Phase
-from cogblocks.sensing import KalmanEstimator
+from cogblocks.phase.gate import SpikeGate
+from cogblocks.phase.scaled_kalman import ScaledKalman
 from cogblocks.sim import Diagram
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
@@ -18,16 +19,19 @@ FRONT_ENDS = ("lowpass", "kalman")
 class PhaseEstimator(Diagram):
     """Online phase of a 1D oscillating position: a Butterworth low-pass followed by Algorithm 1.
 
-    A hierarchical diagram of two blocks, ``lowpass`` (:class:`~cogblocks.blocks.LowPass`, started
-    in steady state at the first sample) and ``algorithm`` (:class:`Algorithm1Phase`, which also
-    reads the unfiltered position to recognise missing and frozen samples). With
-    ``front_end="kalman"`` a :class:`~cogblocks.sensing.KalmanEstimator` named ``kalman``
-    (constant-acceleration model, one axis, its defaults for arm motion in mm) takes the place of
-    the low-pass filter: its ``p_hat``, ``v_hat`` and ``a_hat`` feed the algorithm, which then takes
-    no differences and compensates no lag (``cutoff``, ``order``, ``compensate`` and
-    ``accel_window`` are unused). Other noise parameters: ``replace("kalman", KalmanEstimator(...))``.
-    See :class:`Algorithm1Phase` for the algorithm; ``docs/phase-estimation-1d.md`` for the
-    measurements behind the defaults.
+    A hierarchical diagram of three blocks: ``gate`` (:class:`~cogblocks.phase.gate.SpikeGate`,
+    which turns spikes, relative to the signal's running scale, and absurd numbers into NaN),
+    ``lowpass`` (:class:`~cogblocks.blocks.LowPass`, started in steady state at the first sample) and
+    ``algorithm`` (:class:`Algorithm1Phase`, which also reads the gated unfiltered position to
+    recognise missing and frozen samples). No rule is absolute in time or amplitude: the estimator
+    works at any step from 4 to 40 ms and in any unit with its defaults. With
+    ``front_end="kalman"`` a :class:`~cogblocks.phase.scaled_kalman.ScaledKalman` named ``kalman``
+    (constant-acceleration model, one axis, noise scaled to the signal's amplitude over its first
+    3 s) takes the place of the low-pass filter: its ``p_hat``, ``v_hat`` and ``a_hat`` feed the
+    algorithm, which then takes no differences and compensates no lag (``cutoff``, ``order``,
+    ``compensate`` and ``accel_window`` are unused). Noise fitted to a recording:
+    ``replace("kalman", KalmanEstimator(**fit_noise(...)))``. See :class:`Algorithm1Phase` for the
+    algorithm; ``docs/phase-estimation-1d.md`` for the rules, their units and the measurements.
 
     Ports
     -----
@@ -35,6 +39,8 @@ class PhaseEstimator(Diagram):
         Position along the axis of the movement (any offset).
     theta : output, scalar, rad, wrapped
         Estimated phase in ``[0, 2π)``; ``p = cos ωt`` gives ``θ ≈ ωt``.
+    held : output, scalar bool
+        True when ``theta`` is extrapolated (or held) rather than measured.
     amp_p : output, shape (2,), ``unit``
         Current ``[A_p+, A_p−]``.
     amp_v : output, shape (2,), ``unit``/s
@@ -59,16 +65,20 @@ class PhaseEstimator(Diagram):
         What estimates position and velocity in front of Algorithm 1: the Butterworth low-pass and
         backward differences (default), or a Kalman filter (see above). Drop-outs are recognised
         on the raw position in both cases; the Kalman filter predicts through them.
-    unit, centre_periods, accel_window, min_dropout, holdoff, max_period
+    unit, centre_periods, accel_window, min_dropout, dropout_period, dropout_steps, holdoff, max_coast, max_period
         As in :class:`Algorithm1Phase`.
+    spike_factor : float
+        Spike threshold of the gate, in running mean absolute deviations (see ``SpikeGate``).
     period : float, optional
         Period of both blocks, in seconds.
 
     Notes
     -----
-    Bad data policy: that of :class:`Algorithm1Phase`, which reads the raw position with either
-    front end: a NaN or inf sample is skipped and ``theta``, ``amp_p`` and ``amp_v`` hold; the
-    phase is never NaN.
+    Bad data policy: that of :class:`Algorithm1Phase`, which reads the gated raw position with
+    either front end: a NaN, inf, absurd (beyond 1e150) or spike sample is missing: ``theta`` is
+    extrapolated at the last frequency (for at most ``max_coast`` periods, then held), ``held`` is
+    True, ``amp_p`` and ``amp_v`` hold; drop-outs (implausible runs of repeated samples) likewise.
+    The phase is never NaN.
 
     Examples
     --------
@@ -90,8 +100,12 @@ class PhaseEstimator(Diagram):
         centre_periods: int = 2,
         accel_window: float = 0.05,
         min_dropout: float = 0.03,
+        dropout_period: float = 0.25,
+        dropout_steps: float = 3.0,
         holdoff: float = 0.2,
+        max_coast: float = 2.0,
         max_period: float = 5.0,
+        spike_factor: float = 5.0,
         compensate: bool = True,
         front_end: str = "lowpass",
         period: float | None = None,
@@ -108,24 +122,30 @@ class PhaseEstimator(Diagram):
             centre_periods=centre_periods,
             accel_window=accel_window,
             min_dropout=min_dropout,
+            dropout_period=dropout_period,
+            dropout_steps=dropout_steps,
             holdoff=holdoff,
+            max_coast=max_coast,
             max_period=max_period,
             cutoff=cutoff if compensate and not kalman else None,
             order=order,
             derivative_inputs=kalman,
         )
+        gate = self.add("gate", SpikeGate(factor=spike_factor, unit=unit))
+        self.expose_input("p", gate.u)
         if kalman:
-            estimator = self.add("kalman", KalmanEstimator("ca", dims=1, unit=unit))
+            estimator = self.add("kalman", ScaledKalman(unit=unit))
             self.add("algorithm", algorithm)
+            self.connect(gate.y, estimator.p, algorithm.raw)
             self.connect(estimator.p_hat, algorithm.p)
             self.connect(estimator.v_hat, algorithm.v)
             self.connect(estimator.a_hat, algorithm.a)
-            self.expose_input("p", estimator.p, algorithm.raw)
         else:
             lowpass = self.add("lowpass", LowPass(cutoff, order))
             self.add("algorithm", algorithm)
+            self.connect(gate.y, lowpass.u, algorithm.raw)
             self.connect(lowpass.y, algorithm.p)
-            self.expose_input("p", lowpass.u, algorithm.raw)
         self.expose_output("theta", algorithm.theta)
+        self.expose_output("held", algorithm.held)
         self.expose_output("amp_p", algorithm.amp_p)
         self.expose_output("amp_v", algorithm.amp_v)

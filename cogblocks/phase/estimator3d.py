@@ -54,6 +54,10 @@ class PhaseEstimator3D(Diagram):
         Backward differences of the raw position (default) or the Kalman front end above.
     kalman_model : {"cv", "ca"}
         Model of that Kalman filter (``"ca"`` by default); unused with ``velocity="difference"``.
+    customization : {"affine", "deliverable"}
+        How the reference is fitted to each period (see :func:`customize_reference`): a
+        least-squares linear map (default; any rotation and scale), or the deliverable's per-axis
+        scale then rotation, for reproduction.
 
     Notes
     -----
@@ -78,6 +82,7 @@ class PhaseEstimator3D(Diagram):
         velocity_weight: float | None = None,
         velocity: str = "difference",
         kalman_model: str = "ca",
+        customization: str = "affine",
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -98,7 +103,7 @@ class PhaseEstimator3D(Diagram):
                 min_period_fraction=min_period_fraction,
             ),
         )
-        customizer = self.add("customizer", ReferenceCustomizer(reference))
+        customizer = self.add("customizer", ReferenceCustomizer(reference, customization=customization))
         phase = self.add(
             "phase",
             PhaseComputer(

@@ -149,19 +149,27 @@ def test_flat_dropout_without_coasting_would_fail():
     assert err[(t >= 6.5) & (t < 7.3)].max() > 0.5
 
 
-def test_nan_sample_holds_outputs_and_state():
+def test_nan_sample_extrapolates_the_phase_and_holds_amplitudes_and_state():
+    """A missing sample: θ moves on at the estimated frequency (held is set), nothing else advances."""
     _, p = cosine(seconds=5.0)
     compiled = PhaseEstimator().compile(DT)
     for x in p[:250]:
         before = compiled.step(p=x)
+    assert not before["held"]
     state = compiled.state_dict()
-    for bad in (np.nan, np.inf):
+    omega = state["blocks"]["algorithm"]["state"]["omega"]
+    assert omega == pytest.approx(TWO_PI * 0.8, rel=0.02)
+    for n, bad in enumerate((np.nan, np.inf, 1e308), start=1):
         out = compiled.step(p=bad)
-        assert out["theta"] == before["theta"]
+        assert out["held"]
+        assert out["theta"] == pytest.approx((before["theta"] + n * omega * DT) % TWO_PI, abs=1e-12)
         np.testing.assert_array_equal(out["amp_p"], before["amp_p"])
+        np.testing.assert_array_equal(out["amp_v"], before["amp_v"])
         after = compiled.state_dict()
         for path in state["blocks"]:
             for name, value in state["blocks"][path]["state"].items():
+                if (path, name) in {("algorithm", "phase"), ("algorithm", "since"), ("algorithm", "coast")}:
+                    continue  # the extrapolation's own clock
                 np.testing.assert_array_equal(after["blocks"][path]["state"][name], value, err_msg=f"{path}.{name}")
 
 

@@ -37,8 +37,8 @@ def test_kalman_front_end_replaces_the_lowpass():
     estimator = PhaseEstimator(front_end="kalman")
     assert isinstance(estimator["kalman"], KalmanEstimator) and estimator["kalman"].model == "ca"
     assert estimator["algorithm"].derivative_inputs and estimator["algorithm"].cutoff is None
-    assert sorted(estimator.blocks) == ["algorithm", "kalman"]
-    assert sorted(PhaseEstimator().blocks) == ["algorithm", "lowpass"]  # the default is unchanged
+    assert sorted(estimator.blocks) == ["algorithm", "gate", "kalman"]
+    assert sorted(PhaseEstimator().blocks) == ["algorithm", "gate", "lowpass"]  # the default is unchanged
 
 
 @pytest.mark.parametrize("f", [0.5, 0.8, 1.2])
