@@ -116,6 +116,7 @@ class PhaseEstimator(Diagram):
         self.front_end = one_of(self, "front_end", front_end, FRONT_ENDS)
         cutoff = finite_number(self, "cutoff", cutoff, low=0.0, low_open=True)
         order = positive_int(self, "order", order)
+        spike_factor = finite_number(self, "spike_factor", spike_factor, low=0.0, low_open=True)
         kalman = front_end == "kalman"
         algorithm = Algorithm1Phase(
             unit=unit,

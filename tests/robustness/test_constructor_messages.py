@@ -102,12 +102,24 @@ BASES: dict[str, Callable[[], dict[str, Any]]] = {
 # Parameters documented as passed through to an inner block, whose message may name that block.
 PASS_THROUGH: dict[str, dict[str, str]] = {
     "PhaseEstimator": dict.fromkeys(
-        ("unit", "centre_periods", "accel_window", "min_dropout", "holdoff", "max_period"), "Algorithm1Phase"
+        (
+            "unit",
+            "centre_periods",
+            "accel_window",
+            "min_dropout",
+            "dropout_period",
+            "dropout_steps",
+            "holdoff",
+            "max_coast",
+            "max_period",
+        ),
+        "Algorithm1Phase",
     ),
     "PhaseEstimator3D": dict.fromkeys(
         ("h", "capacity", "start_speed", "match_ratio", "min_period_fraction"), "PeriodEstimator"
     )
-    | dict.fromkeys(("search", "window", "jump_factor", "distance_floor", "velocity_weight"), "PhaseComputer"),
+    | dict.fromkeys(("search", "window", "jump_factor", "distance_floor", "velocity_weight"), "PhaseComputer")
+    | {"customization": "ReferenceCustomizer"},
     "LibraryProjector": dict.fromkeys(("metric", "dtype"), "PrefixProjection"),
     "L2Amplification": {"candidates": "LibraryProjector"},
 }
@@ -246,6 +258,11 @@ CASES = [
     case("PhaseEstimator", "compensate", "yes", "True or False"),
     case("PhaseEstimator", "front_end", "median", "one of ['lowpass', 'kalman']"),
     case("Algorithm1Phase", "derivative_inputs", "yes", "True or False"),
+    case("Algorithm1Phase", "dropout_period", 0.0, "(0.0, inf)"),
+    case("Algorithm1Phase", "dropout_steps", -1.0, "(0.0, inf)"),
+    case("Algorithm1Phase", "max_coast", math.nan, "(0.0, inf)"),
+    case("PhaseEstimator", "spike_factor", 0.0, "(0.0, inf)"),
+    case("ReferenceCustomizer", "customization", "rigid", "one of ['affine', 'deliverable']"),
     case("PhaseEstimator3D", "velocity", "spline", "one of ['difference', 'kalman']"),
     case("PhaseEstimator3D", "kalman_model", "cj", "one of ['cv', 'ca']"),
     # 3D phase
