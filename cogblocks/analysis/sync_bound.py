@@ -159,7 +159,10 @@ def optimal_control_bound(
     g = ca.vertcat(ca.vec(xv[:, 0] - x_init), ca.vec(ends - xv[:, 1:]))
     nlp = {"x": ca.vertcat(ca.vec(xv), ca.vec(uv)), "f": -ca.sum2(r_mean) / n_knots, "g": g}
     solver = ca.nlpsol(
-        "sync_bound", "ipopt", nlp, {
+        "sync_bound",
+        "ipopt",
+        nlp,
+        {
             "print_time": False,
             "ipopt.print_level": 0,
             "ipopt.sb": "yes",
@@ -168,7 +171,7 @@ def optimal_control_bound(
             "ipopt.mu_init": 1e-6,
             "ipopt.warm_start_init_point": "yes",
             "ipopt.warm_start_bound_push": 1e-9,
-        }
+        },
     )
     # λ stays within reach of its dynamics (the smooth saturation divides by it)
     low, high = np.full(states0.shape, -np.inf), np.full(states0.shape, np.inf)
@@ -184,7 +187,13 @@ def _constant_states(
     group: SyncGroup, a: np.ndarray, params: BlenderParams, w: float, n_knots: int, ticks_per_knot: int
 ) -> np.ndarray:
     """States (θ unwrapped, λ, θ_ref) at every knot under the constant frequency ``w``, shape (n_knots + 1, N + 2)."""
-    model = SyncModel(omega=np.asarray(group.omega, dtype=float), gain=group.gain, adjacency=a, assisted=group.assisted, blender=params)
+    model = SyncModel(
+        omega=np.asarray(group.omega, dtype=float),
+        gain=group.gain,
+        adjacency=a,
+        assisted=group.assisted,
+        blender=params,
+    )
     theta, lam, ref = np.zeros(group.n), np.array(params.lambda_max), 0.0
     unwrapped = np.zeros(group.n)
     states = [np.r_[unwrapped, lam, ref]]
