@@ -151,8 +151,8 @@ class GroupIdentifier(Block):
     Notes
     -----
     Bad data policy: a tick whose phases (or θ_L2) are not all finite and within one turn of [0, 2π),
-    or that implies a rate above ``max_rate``, adds no equation, nor does the tick after it (an increment needs two good samples);
-    the outputs hold their last estimate.
+    or that implies a rate above ``max_rate``, adds no equation, nor does the tick after it (an
+    increment needs two good samples); the outputs hold their last estimate.
     """
 
     def __init__(

@@ -143,7 +143,8 @@ class MPCMotion(_MotionPorts):
 
     Bad data policy: on a tick with a phase that is not finite and within one turn of [0, 2π), or a
     non-finite λ, nothing is identified or decided and θ_ref keeps integrating the committed frequency
-    (a decision due on that tick is taken at the next good tick).
+    (a decision due on that tick is taken at the next good tick); a finite λ outside the blender's
+    [λ_min, λ_max] is clipped to it.
     """
 
     _theta_feedthrough = False
@@ -245,6 +246,8 @@ class MPCMotion(_MotionPorts):
     def update(self, k: int) -> None:
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
         good = usable_phases(theta) and math.isfinite(lam)
+        # the real blender's λ never leaves its range; a value outside is a glitch the model must not divide by
+        lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max) if good else lam
         if good:
             self._identify(theta, lam)
         if k % self.replan_every == 0:
