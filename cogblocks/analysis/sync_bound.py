@@ -202,8 +202,13 @@ def optimal_control_bound(
 
 
 def upper_bound(
-    group: SyncGroup, *, adjacency: Any = None, duration: float | None = None, blender: BlenderParams | None = None
+    group: SyncGroup,
+    *,
+    adjacency: Any = None,
+    duration: float | None = None,
+    blender: BlenderParams | None = None,
+    max_iter: int = 50,
 ) -> float:
-    """The larger of :func:`optimal_control_bound` and :func:`constant_frequency_bound`: the yardstick of a policy."""
+    """The larger of :func:`optimal_control_bound` (with ``max_iter``) and :func:`constant_frequency_bound`."""
     kw = {"adjacency": adjacency, "duration": duration, "blender": blender}
-    return max(optimal_control_bound(group, **kw), constant_frequency_bound(group, **kw))
+    return max(optimal_control_bound(group, max_iter=max_iter, **kw), constant_frequency_bound(group, **kw))
