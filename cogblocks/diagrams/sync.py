@@ -49,8 +49,8 @@ def _mpc_motion(group: SyncGroup) -> Block:
 #: Motion computers available by name: each builds a fresh block for a group.
 #: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --seed 0``),
 #: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
-#: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 1 s
-#: every 0.25 s with casadi on a model it identifies online.
+#: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 3 s
+#: every 0.5 s with casadi on a model it identifies online.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
     "lookahead": _lookahead_motion,

@@ -1,6 +1,6 @@
 """A model-predictive motion computer: θ_ref planned over seconds through the blender to maximise the order parameter.
 
-Every ``replan_every`` ticks (a *period*, 0.25 s by default) the block solves with casadi and IPOPT
+Every ``replan_every`` ticks (a *period*, 0.5 s by default) the block solves with casadi and IPOPT
 
     max_u   mean_t r(θ̃(t))            over the horizon, θ̃ = the phases with θ_L2 substituted
     s.t.    the group, the blender's λ dynamics and θ_ref' = u on the smooth model of
@@ -118,10 +118,9 @@ class MPCMotion(_MotionPorts):
     replan_every : int
         Ticks per period (the knot length and the time a solve may take).
     knots : int
-        Free knots in the horizon (horizon = (knots + 1) periods, the committed one included: 1 s by
-        default). On Table 2's group 1, longer horizons did worse in closed loop (+9.9 % with 4 free knots,
-        +8.9 % with 6, +7.9 % with 8, against +10.4 % with 3): the far knots are re-planned anyway, and
-        optimising them pulls the near ones away from what pays now.
+        Free knots in the horizon (horizon = (knots + 1) periods, the committed one included: 3 s by
+        default). The horizon is a trade-off measured on Table 2's groups (docs/pop-sync.md): 1 s is best
+        on group 1 and 3 s on group 3, whose slow entrainment a short horizon does not see.
     step : float
         RK4 step (s) inside the NLP; must divide the period.
     sharpness : int
@@ -161,9 +160,9 @@ class MPCMotion(_MotionPorts):
         omega: Any = None,
         gain: float | None = None,
         blender: BlenderParams | None = None,
-        replan_every: int = 25,
-        knots: int = 3,
-        step: float = 0.125,
+        replan_every: int = 50,
+        knots: int = 5,
+        step: float = 0.25,
         sharpness: int = 8,
         candidates: int = 16,
         trust: float = 2.0,

@@ -80,7 +80,8 @@ def test_mpc_raises_r_on_group_1():
     mpc = MPCMotion(group.n, group.assisted)
     with_mpc = _r_mean(group, mpc, 1001)
     assert with_mpc > without * 1.05
-    assert len(mpc.solve_ms) == 41  # one decision every 25 ticks, t = 0 … 10 s
+    # one decision per period; the first waits for 5 identified increments (tick 5 instead of 0)
+    assert len(mpc.solve_ms) == 1 + 1000 // mpc.replan_every
     assert mpc.plan[0] == pytest.approx(mpc.frequency(1000))
 
 
@@ -104,6 +105,6 @@ def test_mpc_reference_is_continuous_after_the_first_plan():
 def test_mpc_refuses_a_step_that_does_not_divide_the_period():
     group = TABLE2[1]
     with pytest.raises(Exception, match="must divide the period"):
-        Simulator(pop_sync(group, motion=MPCMotion(group.n, group.assisted, step=0.1)))
+        Simulator(pop_sync(group, motion=MPCMotion(group.n, group.assisted, step=0.3)))
     with pytest.raises(ValueError, match="together"):
         MPCMotion(3, 0, omega=[1.0, 2.0, 3.0])
