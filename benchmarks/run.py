@@ -34,6 +34,7 @@ MODULES = [
     "benchmarks.phase1d_accuracy",
     "benchmarks.amplification",
     "benchmarks.optimal_blending",
+    "benchmarks.mpc",
     "benchmarks.soak",
     "benchmarks.sweep",
     "benchmarks.live",

@@ -40,14 +40,22 @@ def _lookahead_motion(group: SyncGroup) -> Block:
     return _l3_motion(group, LookaheadPolicy.for_group(group))
 
 
+def _mpc_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import MPCMotion
+
+    return MPCMotion(group.n, group.assisted)
+
+
 #: Motion computers available by name: each builds a fresh block for a group.
 #: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --seed 0``),
 #: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
-#: the circular mean of the others' phases (no training, no model).
+#: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 3 s
+#: every 0.5 s with casadi on a model it identifies online.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
     "lookahead": _lookahead_motion,
     "mean": _mean_motion,
+    "mpc": _mpc_motion,
 }
 
 

@@ -2,7 +2,8 @@
 its stability check, the motion computers with their L3 policies and the group model they plan with,
 and the L2 architecture as one block.
 
-``DQNPolicy`` is imported on first use, so that this package loads without torch.
+``DQNPolicy``, ``MPCMotion`` and ``GroupIdentifier`` are imported on first use, so that this package loads
+without torch and without casadi.
 """
 
 import importlib
@@ -18,7 +19,11 @@ from cogblocks.sync.order import OrderParameter
 from cogblocks.sync.positions import ArmPositions
 from cogblocks.sync.stability import LambdaReport, check_blender, lambda_report
 
-_LAZY = {"DQNPolicy": "cogblocks.sync.dqn_policy"}
+_LAZY = {
+    "DQNPolicy": "cogblocks.sync.dqn_policy",
+    "GroupIdentifier": "cogblocks.sync.identification",
+    "MPCMotion": "cogblocks.sync.mpc",
+}
 
 __all__ = [
     "DELIVERABLE_BLENDER",
@@ -26,6 +31,7 @@ __all__ = [
     "Blender",
     "BlenderParams",
     "DQNPolicy",
+    "GroupIdentifier",
     "KuramotoGroup",
     "KuramotoOscillator",
     "L2Sync",
@@ -33,6 +39,7 @@ __all__ = [
     "L3Policy",
     "LambdaReport",
     "LookaheadPolicy",
+    "MPCMotion",
     "MeanPhaseMotion",
     "MotionComputer",
     "OrderParameter",

@@ -716,6 +716,39 @@ def register_l2_sync() -> None:
 
 register_l2_sync()
 
+
+def register_mpc() -> None:
+    from cogblocks.sync import GroupIdentifier, MPCMotion
+
+    # one small problem (a single cached casadi build) whatever hypothesis draws
+    register(
+        MPCMotion,
+        st.just(None).map(
+            lambda _: MPCMotion(3, 1, replan_every=5, knots=2, step=0.05, candidates=3, time_limit_ms=20.0)
+        ),
+        lambda b: {"theta": phase((3,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
+        ["theta", "lam"],
+    )
+    register(
+        GroupIdentifier,
+        st.integers(2, 6).flatmap(
+            lambda n: st.builds(GroupIdentifier, st.just(n), assisted=st.none() | st.integers(0, n - 1))
+        ),
+        lambda b: {"theta": phase((b.n,))} | ({"theta_l2": phase()} if b.assisted is not None else {}),
+        ["theta"],
+        # "a tick with a bad phase adds no equation (nor the tick after); the outputs hold their last estimate"
+        Policy(holds={"omega": lambda b, ins, seen: not _usable(ins), "gain": lambda b, ins, seen: not _usable(ins)}),
+    )
+
+
+def _usable(ins) -> bool:
+    from cogblocks.sync.identification import usable_phases
+
+    return usable_phases(np.asarray(ins["theta"])) and usable_phases(np.asarray(ins.get("theta_l2", 0.0)))
+
+
+register_mpc()
+
 # -- sensor streams and L1 ----------------------------------------------------------------------------------
 
 POSITION_SHAPES = st.sampled_from([(), (1,), (3,)])
