@@ -82,10 +82,13 @@ def _plot_path(text: str) -> str:
     if path.suffix.lower().lstrip(".") not in formats:
         raise ValueError(f"{text!r}: give a file name ending in one of .{', .'.join(sorted(formats))}")
     folder = path.parent
-    if not folder.is_dir():
-        raise ValueError(f"{text!r}: no folder {str(folder)!r}")
-    if path.is_dir() or not os.access(folder, os.W_OK):
-        raise ValueError(f"{text!r}: cannot write a file there")
+    try:
+        if not folder.is_dir():
+            raise ValueError(f"{text!r}: no folder {str(folder)!r}")
+        if path.is_dir() or not os.access(folder, os.W_OK):
+            raise ValueError(f"{text!r}: cannot write a file there")
+    except OSError as error:  # e.g. a name too long for the file system
+        raise ValueError(f"{text!r}: cannot write a file there ({error.strerror})") from None
     return text
 
 

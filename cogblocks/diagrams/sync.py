@@ -274,7 +274,7 @@ def plot_sync(
     path: str,
     *,
     duration: float | None = None,
-    window: float = 20.0,
+    window: float = 10.0,
     domain: str = "phase",
     seed: int = 0,
 ) -> None:
@@ -306,13 +306,16 @@ def plot_sync(
     ax1.legend(loc="lower right")
     ax1.set_title(f"{params.name}: Figures 9 and 10 analogues ({domain} domain)")
     for name, text, style in (("theta_ref", "θ_ref − θ_L0", "g-"), ("theta_l2", "θ_L2 − θ_L0", "b-")):
-        ax2.plot(t, _wrapped_difference(with_l2[name], with_l2["theta_l0"]), style, lw=0.8, label=text)
+        difference = _wrapped_difference(with_l2[name], with_l2["theta_l0"])
+        difference[1:][np.abs(np.diff(difference)) > np.pi] = np.nan  # no vertical line where it wraps
+        ax2.plot(t, difference, style, lw=0.8, label=text)
     ax2.set_ylim(-np.pi, np.pi)
     ax2.set_yticks([-np.pi, -np.pi / 2, 0, np.pi / 2, np.pi], ["−π", "−π/2", "0", "π/2", "π"])
     ax2.set_ylabel("phase difference [rad]")
     ax2.legend(loc="upper right")
     for ax in (ax1, ax2):
-        ax.axvspan(t[zoom][0], t[-1], color="0.9", zorder=0)
+        if not zoom.all():
+            ax.axvspan(t[zoom][0], t[-1], color="0.9", zorder=0)
         ax.set_xlim(t[0], t[-1])
     for name, text, style in (("theta_l0", "θ_L0", "k-"), ("theta_ref", "θ_ref", "g--"), ("theta_l2", "θ_L2", "b-")):
         phase = with_l2[name][zoom].copy()
@@ -320,8 +323,8 @@ def plot_sync(
         ax3.plot(t[zoom], phase, style, lw=1.2, label=text)
     ax3.set_ylabel("phase [rad]")
     ax3.set_xlabel("t [s]")
-    ax3.set_title(f"last {t[-1] - t[zoom][0]:g} s", fontsize="medium")
-    ax3.legend(loc="upper right", ncols=3)
+    ax3.set_title(f"the last {t[-1] - t[zoom][0]:g} s", fontsize="medium", loc="left")
+    ax3.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=3, frameon=False)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
