@@ -1,5 +1,6 @@
 """The cogblocks command line."""
 
+import importlib
 import json
 import subprocess
 import sys
@@ -135,3 +136,24 @@ def test_progress_bars_are_named_after_their_run(capsys):
     assert "group 1, without L2" in err and "group 1, L2 with mean" in err
     # the bar splits the run into chunks; the result is the same, tick for tick
     assert run_sync(1, ["mean"], duration=10.5, progress=False) == {**head, "results": [row]}
+
+
+# --- training commands never overwrite the shipped weights by default -------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["encoder", "corrector"])
+def test_training_writes_to_the_working_directory_by_default(name, tmp_path, monkeypatch):
+    module = importlib.import_module(f"cogblocks.training.{name}")
+    monkeypatch.chdir(tmp_path)
+    out = module._parser().parse_args([]).out
+    assert out.resolve() == tmp_path / f"{name}.pt"
+    assert module.SHIPPED.is_file() and module.SHIPPED.resolve() != out.resolve()
+    assert module._parser().parse_args(["--out", str(module.SHIPPED)]).out == module.SHIPPED  # only when asked
+
+
+def test_sync_dqn_training_needs_out(capsys):
+    from cogblocks.training.sync_dqn import _parser
+
+    with pytest.raises(SystemExit):
+        _parser().parse_args(["--seed", "0"])
+    assert "the following arguments are required: --out" in capsys.readouterr().err
