@@ -282,8 +282,8 @@ def plot_sync(
 
     Top: r with and without L2 over the whole run. Middle: the phase differences
     wrap(θ_ref − θ_L0) and wrap(θ_L2 − θ_L0) over the whole run (bounded, unlike the phases
-    themselves). Bottom: θ_L0, θ_ref and θ_L2 over the last ``window`` seconds (shaded above),
-    where the wrapped phases can be told apart.
+    themselves). Bottom: θ_L0, θ_ref and θ_L2 over the last ``window`` seconds (at most a quarter
+    of the run; shaded above), where the wrapped phases can be told apart.
     """
     import matplotlib
 
@@ -298,7 +298,7 @@ def plot_sync(
     diagram = pop_sync(params, l2=True, motion=motion, domain=domain, seed=seed)
     with_l2 = simulate(diagram, n_steps, probes, label=f"plot, L2 with {label}")
     t = with_l2.t
-    zoom = t >= t[-1] - window
+    zoom = t >= t[-1] - min(window, t[-1] / 4)  # a short run is zoomed too
     fig, (ax1, ax2, ax3) = plt.subplots(3, 1, figsize=(9, 8.5))
     ax1.plot(without.t, without["r"], label="without L2", color="0.4", lw=1)
     ax1.plot(t, with_l2["r"], label=f"with L2 ({label})", color="tab:blue", lw=1)
