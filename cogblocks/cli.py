@@ -19,8 +19,8 @@ _BASE_STEP = 0.01  # seconds; the ready diagrams run at 100 Hz
 # --- option values, checked by argparse so that every error names its option ---------------------------
 
 
-def _option_type(name: str, convert: Callable[[str], Any]) -> Callable[[str], Any]:
-    """An argparse ``type``: ``convert(text)``, its ValueError shown as argparse's error for the option."""
+def _option(convert: Callable[[str], Any]) -> Callable[[str], Any]:
+    """An argparse ``type``: ``convert(text)``, its ValueError shown by argparse with the option's name."""
 
     def parse(text: str) -> Any:
         try:
@@ -28,28 +28,20 @@ def _option_type(name: str, convert: Callable[[str], Any]) -> Callable[[str], An
         except ValueError as error:
             raise argparse.ArgumentTypeError(str(error)) from None
 
-    parse.__name__ = name
     return parse
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise ValueError(f"expected an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise ValueError(f"a seed is an integer >= 0, got {value}")
-    return value
+def _integer(minimum: int) -> Callable[[str], int]:
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise ValueError(f"expected an integer >= {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise ValueError(f"expected an integer >= {minimum}, got {value}")
+        return value
 
-
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise ValueError(f"expected an integer >= 1, got {text!r}") from None
-    if value < 1:
-        raise ValueError(f"expected an integer >= 1, got {value}")
-    return value
+    return convert
 
 
 def _duration(text: str) -> float:
@@ -92,11 +84,11 @@ def _plot_path(text: str) -> str:
     return text
 
 
-SEED = _option_type("seed", _seed)
-COUNT = _option_type("count", _count)
-DURATION = _option_type("duration", _duration)
-POLICY = _option_type("policy", _policy)
-PLOT_PATH = _option_type("plot path", _plot_path)
+SEED = _option(_integer(0))  # numpy's generators take seeds >= 0
+COUNT = _option(_integer(1))
+DURATION = _option(_duration)
+POLICY = _option(_policy)
+PLOT_PATH = _option(_plot_path)
 
 
 # --- output ---------------------------------------------------------------------------------------------

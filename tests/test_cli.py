@@ -50,7 +50,7 @@ def test_run_without_target_shows_usage(capsys):
 @pytest.mark.parametrize(
     ("argv", "option", "reason"),
     [
-        (["sync", "--seed", "-1"], "--seed", "a seed is an integer >= 0, got -1"),
+        (["sync", "--seed", "-1"], "--seed", "expected an integer >= 0, got -1"),
         (["phase3d", "--seed", "one"], "--seed", "expected an integer >= 0, got 'one'"),
         (["phase3d", "--trajectories", "0"], "--trajectories", "expected an integer >= 1, got 0"),
         (["demo", "--duration", "0"], "--duration", "expected a duration > 0 s, got 0"),
