@@ -328,7 +328,8 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01) -> ReachLibra
 
     Columns may come in any order and extra columns are ignored. Movements keep the order of
     their first row; within a movement, rows may come in any order but ``t`` must cover
-    ``0 .. T-1`` exactly once, and ``subject``, ``fear`` and ``target`` must not change.
+    ``0 .. T-1`` exactly once, and ``subject``, ``fear`` and ``target`` must not change. A UTF-8
+    byte order mark is skipped. Time and memory are linear in the number of rows.
 
     Parameters
     ----------
@@ -347,6 +348,8 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01) -> ReachLibra
     ------
     FileNotFoundError
         If ``path`` does not exist.
+    IsADirectoryError
+        If ``path`` is a directory.
     DataFormatError
         If the file is empty, lacks a column, or holds non-numeric, non-finite or inconsistent values.
     """
