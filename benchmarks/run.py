@@ -35,6 +35,7 @@ MODULES = [
     "benchmarks.amplification",
     "benchmarks.optimal_blending",
     "benchmarks.soak",
+    "benchmarks.live",
     "benchmarks.loaders",
 ]
 

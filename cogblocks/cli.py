@@ -11,6 +11,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from cogblocks.live.cli import add_live_parser
+
 __all__ = ["main"]
 
 _BASE_STEP = 0.01  # seconds; the ready diagrams run at 100 Hz
@@ -44,13 +46,18 @@ def _integer(minimum: int) -> Callable[[str], int]:
     return convert
 
 
-def _duration(text: str) -> float:
+def _seconds(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
         raise ValueError(f"expected a number of seconds, got {text!r}") from None
     if not math.isfinite(value) or value <= 0:
         raise ValueError(f"expected a duration > 0 s, got {text}")
+    return value
+
+
+def _duration(text: str) -> float:
+    value = _seconds(text)
     steps = value / _BASE_STEP
     if not math.isclose(steps, round(steps), rel_tol=0.0, abs_tol=1e-6):
         raise ValueError(f"{text} s is not a whole number of base steps ({_BASE_STEP * 1000:g} ms)")
@@ -87,6 +94,7 @@ def _plot_path(text: str) -> str:
 SEED = _option(_integer(0))  # numpy's generators take seeds >= 0
 COUNT = _option(_integer(1))
 DURATION = _option(_duration)
+STEP = _option(_seconds)
 POLICY = _option(_policy)
 PLOT_PATH = _option(_plot_path)
 
@@ -169,22 +177,33 @@ def _run_phase3d(args: argparse.Namespace) -> int:
 
 
 def _run_amplification(args: argparse.Namespace) -> int:
+    if args.library is not None:
+        return _run_amplification_pipeline(args)
     from cogblocks.diagrams.amplification import PAPER, plot_amplification, run_amplification
 
-    result = run_amplification() if args.variant is None else run_amplification(tuple(args.variant))
+    variants = ("blend", "blend_rl", "optimised") if args.variant is None else tuple(args.variant)
+    result = run_amplification(variants)
+    result["e_des_0"] = run_amplification(variants, e_des=0)  # the other direction: remove fear
 
     def percent(x: float | None) -> str:
         return "–" if x is None else f"{100 * x:.0f} %"
 
+    def judged(row: dict[str, Any]) -> str:
+        shares = ", ".join(f"{name} {percent(share)}" for name, share in row["judges"].items())
+        return f"; independent judges: {shares}"
+
     def render(r: dict[str, Any]) -> str:
         lines = ["PoP of Amplification: held-out no-fear movements of the synthetic library, made to encode fear"]
         for name, row in r.items():
+            if name == "e_des_0":
+                continue
             paper = PAPER.get(name)
             if paper is None:  # no published figure: the optimised variant
                 lines.append(
                     f"  {name:>9}: encoded {percent(row['encoded'])}, terminal ok {percent(row['terminal_ok'])}, "
                     f"final distance {row['final_distance_mm']:.1f} mm, n {row['n']}; time per decision "
                     f"p50 {row['solve_ms_p50']:.1f} ms, p99 {row['solve_ms_p99']:.1f} ms, fallbacks {row['fallbacks']}"
+                    + judged(row)
                 )
                 continue
             distance = "–" if paper["final_distance_mm"] is None else f"{paper['final_distance_mm']:.0f} mm"
@@ -192,12 +211,36 @@ def _run_amplification(args: argparse.Namespace) -> int:
                 f"  {name:>9}: encoded {percent(row['encoded'])} (paper {percent(paper['encoded'])}), "
                 f"terminal ok {percent(row['terminal_ok'])} (paper {percent(paper['terminal_ok'])}), "
                 f"final distance {row['final_distance_mm']:.1f} mm (paper {distance}), "
-                f"n {row['n']} (paper {paper['n']})"
+                f"n {row['n']} (paper {paper['n']})" + judged(row)
+            )
+        lines.append("Held-out fear movements, fear removed (e_des = 0)")
+        for name, row in r["e_des_0"].items():
+            lines.append(
+                f"  {name:>9}: encoded {percent(row['encoded'])}, terminal ok {percent(row['terminal_ok'])}, "
+                f"n {row['n']}" + judged(row)
             )
         return "\n".join(lines)
 
     _print_result(result, args.json, render)
     _plot(args.plot, plot_amplification)
+    return 0
+
+
+def _run_amplification_pipeline(args: argparse.Namespace) -> int:
+    from cogblocks.training.pipeline import run_pipeline
+
+    if args.out is None:
+        raise ValueError("--library needs --out DIR for the weights, tables and report")
+    report = run_pipeline(
+        args.library,
+        args.out,
+        seed=args.seed,
+        quick=args.quick,
+        label_field=args.label_field,
+        dt=args.dt,
+        log=lambda line: print(line, file=sys.stderr),
+    )
+    _print_result(report, args.json, lambda r: json.dumps(r["directions"], indent=2))
     return 0
 
 
@@ -254,6 +297,12 @@ def _build_parser() -> argparse.ArgumentParser:
         choices=("blend", "blend_rl", "optimised"),
         help="variant(s) to run (default: all three); 'optimised' is the casadi blending; repeatable",
     )
+    amplification.add_argument("--library", metavar="FILE", help="run the whole chain on FILE (.mat, .npz, .csv)")
+    amplification.add_argument("--out", metavar="DIR", help="with --library: where weights, tables, report go")
+    amplification.add_argument("--quick", action="store_true", help="with --library: short training runs")
+    amplification.add_argument("--seed", type=SEED, default=0, help="with --library: seed of split and training")
+    amplification.add_argument("--label-field", metavar="NAME", help="with --library: the fear label's name")
+    amplification.add_argument("--dt", type=STEP, metavar="SECONDS", help="with --library: the sampling step")
     _common(amplification)
     amplification.set_defaults(handler=_run_amplification)
 
@@ -263,6 +312,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     _common(demo)
     demo.set_defaults(handler=_run_demo)
+    add_live_parser(commands)
     return parser
 
 

@@ -1,75 +1,87 @@
-"""A live 100 Hz loop on a motion-capture stream: one sample in, the avatar's position and phase out.
+"""A live 100 Hz loop on a motion-capture stream over Lab Streaming Layer: the avatar's position and phase out.
 
-The L1 avatar (Kalman estimate, 100 ms of delay predicted away) and a 1D phase estimator with a
-Kalman front end share one tracked marker. The stream is synthetic here: a seeded arm oscillation
-that arrives 100 ms late, with tracking drop-outs (frozen values), lost frames (NaN) and spikes.
-With a real tracker, replace ``next_sample`` by its read call; the loop stays the same.
+The L1 avatar (Kalman estimate, the stream's 100 ms of delay and the inlet's 20 ms predicted away)
+and a 1D phase estimator with a Kalman front end read one tracked marker through an ``LSLInlet``,
+and two ``LSLOutlet`` blocks publish the avatar's position and phase for a renderer (Unity, Unreal: see docs/live.md).
+``run_realtime`` paces the ticks. Without ``--in``, the marker comes from ``stream_markers.py``,
+started here, and LSL stays on this machine.
 
-    python examples/live_stream.py [seconds]
+    python examples/live_stream.py [seconds] [--in STREAM]
 """
 
+import argparse
+import os
+import subprocess
 import sys
-import time
+from pathlib import Path
 
 import numpy as np
 
-from cogblocks.data.oscillation import generate_oscillation
-from cogblocks.phase import PhaseEstimator
-from cogblocks.sensing import L1, KalmanEstimator
-from cogblocks.sim import Diagram
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("seconds", nargs="?", type=float, default=5.0, help="how long to run (default 5 s)")
+parser.add_argument("--in", dest="stream", help="a marker stream to read (1 channel, mm); default: simulated")
+args = parser.parse_args()
+
+streamer = None
+if args.stream is None:
+    if "LSLAPICFG" not in os.environ:  # before pylsl loads; the streamer inherits it
+        from cogblocks.live.config import use_machine_only_config
+
+        use_machine_only_config("cogblocks-examples")
+    args.stream = f"cogblocks-marker-{os.getpid()}"
+    script = Path(__file__).with_name("stream_markers.py")
+    streamer = subprocess.Popen([sys.executable, str(script), str(args.seconds + 60), "--name", args.stream])
+
+from cogblocks.live import LSLInlet, LSLOutlet, run_realtime  # noqa: E402
+from cogblocks.phase import PhaseEstimator  # noqa: E402
+from cogblocks.sensing import L1, KalmanEstimator  # noqa: E402
+from cogblocks.sim import Diagram  # noqa: E402
 
 DT = 0.01  # 100 Hz
-DELAY_TICKS = 10  # the stream is 100 ms late
-seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 5.0
+DELAY = 0.1  # how late the marker arrives
+BACK = DELAY + 0.02  # how far back the inlet reads it: where two received samples surround the time read
 
 d = Diagram()
-avatar = d.add("l1", L1(DELAY_TICKS * DT, estimator=KalmanEstimator("ca", dims=1)))
+# the marker resampled on the tick grid, BACK seconds back; L1 predicts that far ahead
+marker = d.add("marker", LSLInlet(args.stream, unit="mm", mode="interpolate", lag=BACK, timeout=10.0))
+avatar = d.add("l1", L1(BACK, estimator=KalmanEstimator("ca", dims=1)))
 phase = d.add("phase", PhaseEstimator(front_end="kalman"))
-d.expose_input("p", avatar.p, phase.p)
+d.add("position_out", LSLOutlet("cogblocks-avatar-position", stream_type="MoCap"))
+d.add("phase_out", LSLOutlet("cogblocks-avatar-phase", stream_type="Phase"))
+d.connect(marker.y, avatar.p, phase.p)
+d.connect(avatar.p_avatar, "position_out.u")
+d.connect(phase.theta, "phase_out.u")
+d.expose_output("sample", marker.y)
 d.expose_output("p_avatar", avatar.p_avatar)
 d.expose_output("theta", phase.theta)
 live = d.compile(DT)
 
-# 10 s of warm-up (the phase estimator needs a few periods), then the paced part
-n_warm, n_live = 1000, round(seconds / DT)
-motion = generate_oscillation((n_warm + n_live + DELAY_TICKS) * DT, seed=7, nan_rate=0.02)
-rng = np.random.default_rng(7)
-spikes = rng.random(len(motion.position)) < 0.005
-stream = np.where(spikes, motion.position + rng.choice([-400.0, 400.0], len(spikes)), motion.position)
+try:
+    report = run_realtime(live, args.seconds, 1 / DT, record=True)
+finally:
+    for block in (marker, live.blocks["position_out"], live.blocks["phase_out"]):
+        block.close()  # before the streamer goes, so that the inlet does not try to reconnect
+    if streamer is not None:
+        streamer.terminate()
+        streamer.wait()
 
-
-def next_sample(k: int) -> float:
-    """The sample that arrives at tick ``k``: the marker as it was DELAY_TICKS ago, glitches and all."""
-    return float(stream[k - DELAY_TICKS]) if k >= DELAY_TICKS else float("nan")
-
-
-for k in range(n_warm):  # as fast as possible
-    live.step(p=next_sample(k))
-
-compute, late, errors, phase_errors = [], 0, [], []
-deadline = time.perf_counter()
-for k in range(n_warm, n_warm + n_live):
-    start = time.perf_counter()
-    out = live.step(p=next_sample(k))
-    compute.append(time.perf_counter() - start)
-    errors.append(float(out["p_avatar"]) - motion.clean[k])  # against where the hand is now
-    phase_errors.append(np.angle(np.exp(1j * (float(out["theta"]) - motion.phase[k - DELAY_TICKS]))))
-    # hand the avatar's position to the display here; then wait for the next tick
-    deadline += DT
-    slack = deadline - time.perf_counter()
-    if slack > 0:
-        time.sleep(slack)
-    else:
-        late += 1
-
-raw = stream[n_warm - DELAY_TICKS : n_warm + n_live - DELAY_TICKS] - motion.clean[n_warm : n_warm + n_live]
-ms = 1e3 * np.array(compute)
+s = report.summary()
 print(
-    f"{n_live} ticks at 100 Hz: compute p50 {np.median(ms):.2f} ms, p99 {np.percentile(ms, 99):.2f} ms, "
-    f"{late} tick(s) past the deadline"
+    f"{s['ticks']} ticks at 100 Hz: compute p50 {s['tick_ms_p50']:.2f} ms, p99 {s['tick_ms_p99']:.2f} ms, "
+    f"{s['late_ticks']} tick(s) past their slot; {s['samples_in']} samples in, {s['samples_out']} out, "
+    f"oldest sample used {s['max_age_ms']:.0f} ms"
 )
+# the avatar should lead what the inlet reads by BACK: find the lag that best lines them up
+sample, shown = report.trace["sample"], report.trace["p_avatar"]
+good = np.isfinite(sample) & np.isfinite(shown)
+half = len(sample) // 2
+errors = [
+    np.nanmean(np.abs(shown[half - lag : -lag] - sample[half:])[good[half:] & good[half - lag : -lag]])
+    for lag in range(1, 30)
+]
 print(
-    f"avatar RMS error to the current position: {np.sqrt(np.mean(np.square(errors))):.1f} mm "
-    f"(the raw delayed stream: {np.sqrt(np.nanmean(np.square(raw))):.1f} mm, ignoring its NaN)"
+    f"the avatar leads the stream it reads by {10 * (1 + int(np.argmin(errors)))} ms (the inlet reads "
+    f"{1e3 * BACK:.0f} ms back); {np.count_nonzero(~np.isfinite(sample))} ticks had no usable sample, "
+    f"{np.count_nonzero(~np.isfinite(shown))} showed no avatar position"
 )
-print(f"phase error to the true phase of the delayed sample: mean {np.mean(np.abs(phase_errors)):.3f} rad")
+print(f"phase at the end: {report.trace['theta'][-1]:.2f} rad")

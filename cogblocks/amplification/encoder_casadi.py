@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,7 +19,7 @@ from cogblocks.amplification.encoder import (
 )
 from cogblocks.sim.params import positive_int
 
-__all__ = ["encoder_to_casadi", "input_map"]
+__all__ = ["encoder_to_casadi", "ensemble_logits", "input_map"]
 
 _U_SCALE = 100.0  # mm/s: knots are solved in units of 100 mm/s, so that they are of order one
 _PENALTY = 1e3  # weight of the encoding slack (per logit unit) against the correction's cost
@@ -97,11 +98,12 @@ def _weights(network: EncoderNet) -> dict[str, Any]:
     }
 
 
-def _weights_key(weights: dict[str, Any]) -> str:
+def _weights_key(*weights: dict[str, Any]) -> str:
     digest = hashlib.sha256()
-    for name in sorted(weights):
-        digest.update(name.encode())
-        digest.update(np.ascontiguousarray(weights[name], dtype=np.float64).tobytes())
+    for member in weights:
+        for name in sorted(member):
+            digest.update(name.encode())
+            digest.update(np.ascontiguousarray(member[name], dtype=np.float64).tobytes())
     return digest.hexdigest()
 
 
@@ -157,12 +159,42 @@ class _Solver:
 _SOLVERS: dict[tuple, _Solver] = {}
 
 
-def _solver(network: EncoderNet, key: str, n: int, method: str, time_limit: float, sharpness: float) -> _Solver:
-    """The parametric NLP of one decision with ``n`` free knots per axis (see :class:`OptimalBlender`)."""
+def ensemble_logits(networks: Sequence[EncoderNet], sharpness: float | None = None) -> ca.Function:
+    """The logits of several encoder networks at once, ``x (60) → z (members)``, as one casadi function.
+
+    Each network's input normalisation is folded into its first layer and the layers are stacked,
+    so the members cost one matrix product (instead of one function call each) inside a solver.
+    ``sharpness`` smooths ReLU as in :func:`encoder_to_casadi`.
+    """
+    weights = [_weights(network) for network in networks]
+    w1 = np.vstack([w["w1"] / w["scale"] for w in weights])
+    b1 = np.concatenate([w["b1"] - (w["w1"] / w["scale"]) @ w["mean"] for w in weights])
+    w2 = np.zeros((len(weights), len(b1)))
+    start = 0
+    for k, w in enumerate(weights):
+        w2[k, start : start + len(w["w2"])] = w["w2"]
+        start += len(w["w2"])
+    x = ca.MX.sym("x", w1.shape[1])
+    pre = ca.mtimes(ca.DM(w1), x) + ca.DM(b1)
+    hidden = ca.fmax(0, pre)
+    if sharpness is not None:
+        hidden = hidden + ca.log1p(ca.exp(-sharpness * ca.fabs(pre))) / sharpness
+    z = ca.mtimes(ca.DM(w2), hidden) + ca.DM([w["b2"] for w in weights])
+    return ca.Function("ensemble", [x], [z], ["x"], ["logits"])
+
+
+def _solver(
+    networks: Sequence[EncoderNet], key: str, n: int, method: str, time_limit: float, sharpness: float
+) -> _Solver:
+    """The parametric NLP of one decision with ``n`` free knots per axis (see :class:`OptimalBlender`).
+
+    One encoding constraint per network: the plan must satisfy every member (the ensemble's minimum).
+    """
     cache_key = (key, n, method, time_limit, sharpness)
     if cache_key in _SOLVERS:
         return _SOLVERS[cache_key]
-    n_in = network.hidden.in_features
+    members = len(networks)
+    n_in = networks[0].hidden.in_features
     w = ca.MX.sym("w", 3 * n)  # knots, axis-major, in units of _U_SCALE
     s = ca.MX.sym("s")  # encoding slack, in logit units
     sizes = {"A": n_in * 3 * n, "x0": n_in, "G": n * n, "q": 3 * n, "cs": n, "g0": 3, "dir": 3, "rhs": 4}
@@ -172,7 +204,7 @@ def _solver(network: EncoderNet, key: str, n: int, method: str, time_limit: floa
     sign, z_rhs, speed_rhs, delta = ca.vertsplit(part["rhs"])
     axes = ca.vertsplit(w, [0, n, 2 * n, 3 * n])
     cost = sum(ca.dot(u, ca.mtimes(g, u)) for u in axes) + 2 * ca.dot(part["q"], w) + _PENALTY * s
-    z = encoder_to_casadi(network, logit=True, sharpness=sharpness)(ca.mtimes(a, w) + part["x0"])
+    z = ensemble_logits(networks, sharpness)(ca.mtimes(a, w) + part["x0"])
     gap = part["g0"] + ca.vertcat(*[ca.dot(part["cs"], u) for u in axes])
     last = ca.vertcat(*[u[n - 1] for u in axes])
     constraints = ca.vertcat(sign * z + s - z_rhs, ca.sumsqr(gap) - delta**2, ca.dot(part["dir"], last) - speed_rhs)
@@ -189,7 +221,8 @@ def _solver(network: EncoderNet, key: str, n: int, method: str, time_limit: floa
             "ipopt.mu_init": 1e-3,
         }
     else:
-        deadline = _Deadline({"x": 3 * n + 1, "f": 1, "g": 3, "lam_x": 3 * n + 1, "lam_g": 3, "lam_p": p.numel()})
+        m = members + 2
+        deadline = _Deadline({"x": 3 * n + 1, "f": 1, "g": m, "lam_x": 3 * n + 1, "lam_g": m, "lam_p": p.numel()})
         options = {
             "print_time": False,
             "print_header": False,

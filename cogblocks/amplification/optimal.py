@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -137,8 +138,11 @@ class OptimalBlender(Block):
     ----------
     library : ReachLibrary
         The projector's library (η_i and the reference are indices into it).
-    network : EncoderNet
-        The classifier whose ε̂ the plan constrains.
+    network : EncoderNet or sequence of EncoderNet
+        The classifier(s) whose ε̂ the plan constrains. With several (an ensemble), the plan must
+        meet the encoding constraint for every one of them, i.e. for the ensemble's least favourable
+        ε̂ (the minimum for ``e_des = 1``, the maximum for ``e_des = 0``); the reported ε̂ and the
+        acceptance checks use that member too. The table's network is best among them.
     table : SolutionTable, optional
         w̃ on ``library`` for ``e_des``: the first warm start and the first decision's fallback.
     e_des : {0, 1}
@@ -183,7 +187,7 @@ class OptimalBlender(Block):
     def __init__(
         self,
         library: ReachLibrary,
-        network: EncoderNet,
+        network: EncoderNet | Sequence[EncoderNet],
         table: SolutionTable | None = None,
         *,
         e_des: int = 1,
@@ -201,8 +205,17 @@ class OptimalBlender(Block):
         super().__init__(period=period)
         if not isinstance(library, ReachLibrary):
             raise ValueError(f"OptimalBlender: library must be a ReachLibrary, got {type(library).__name__}")
-        if not isinstance(network, EncoderNet):
-            raise ValueError(f"OptimalBlender: network must be an EncoderNet, got {type(network).__name__}")
+        networks = [network] if isinstance(network, EncoderNet) else network
+        if (
+            not isinstance(networks, (list, tuple))
+            or not networks
+            or not all(isinstance(n, EncoderNet) for n in networks)
+        ):
+            given = type(network).__name__ if not isinstance(networks, (list, tuple)) else f"{len(networks)} items"
+            if isinstance(networks, (list, tuple)) and networks:
+                given += " of types " + ", ".join(sorted({type(n).__name__ for n in networks}))
+            raise ValueError(f"OptimalBlender: network must be an EncoderNet or a non-empty list of them, got {given}")
+        networks = list(networks)
         self.e_des = one_of(self, "e_des", e_des, (0, 1))
         if table is not None and (not isinstance(table, SolutionTable) or table.e_des != self.e_des):
             raise ValueError(
@@ -221,10 +234,16 @@ class OptimalBlender(Block):
         self.sharpness = finite_number(self, "sharpness", sharpness, low=0.0, low_open=True)
         self.rest_speed = finite_number(self, "rest_speed", rest_speed, low=0.0)
         self.library = library
-        self.network = network
+        self.networks = networks
+        self.network = networks[0]
         self.table = table
-        self._w = _weights(network)
-        self._key = _weights_key(self._w)
+        weights = [_weights(n) for n in networks]
+        self._key = _weights_key(*weights)
+        # every member's first layer with its normalisation folded in, stacked: one product per check
+        self._w1 = np.vstack([w["w1"] / w["scale"] for w in weights])
+        self._b1 = np.concatenate([w["b1"] - (w["w1"] / w["scale"]) @ w["mean"] for w in weights])
+        self._w2 = [w["w2"] for w in weights]
+        self._b2 = np.array([w["b2"] for w in weights])
         self._sign = 1.0 if self.e_des == 1 else -1.0
         self._z_target = math.log((CLIP_HIGH + self.margin) / (1.0 - CLIP_HIGH - self.margin))
         self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)
@@ -237,7 +256,8 @@ class OptimalBlender(Block):
         self.add_state("end", 0)  # its planned length L; 0: no plan yet
         self.add_state("table_c", math.nan)  # the table's c while falling back to it
         self.add_state("handled", 0)  # decisions handled
-        self.add_state("multipliers", np.zeros(4))  # of the 3 constraints and the slack's bound: warm start
+        # of the constraints (one encoding constraint per network) and the slack's bound: warm start
+        self.add_state("multipliers", np.zeros(len(networks) + 3))
         self.add_state("fallbacks", 0)
         self.results: list[PlanResult] = []
 
@@ -245,7 +265,7 @@ class OptimalBlender(Block):
         # build every solver and resampling matrix a decision may need now, not in the middle of the loop
         spacing, n = self.knot_spacing, len(self.human)
         for knots in range(1, len(range(spacing, n - 1, spacing)) + 2):
-            _solver(self.network, self._key, knots, self.solver, self.time_limit_ms / 1e3, self.sharpness)
+            _solver(self.networks, self._key, knots, self.solver, self.time_limit_ms / 1e3, self.sharpness)
         for length in range(1, n + 1):
             resampling_matrix(length)
 
@@ -314,7 +334,7 @@ class OptimalBlender(Block):
             w, multipliers, status = self._solve(problem, self._initial_guess(problem, predicted, reference, nearest))
             if w is None:
                 new["fallbacks"] = self.fallbacks + 1
-                new["multipliers"] = np.zeros(4)
+                new["multipliers"] = np.zeros(len(self.networks) + 3)
                 if self.end == 0 and self.table is not None:
                     new["table_c"] = self.table.lookup(nearest, reference)
             else:
@@ -393,13 +413,15 @@ class OptimalBlender(Block):
         return guess.T.reshape(-1) / _U_SCALE
 
     def _logit(self, x: np.ndarray) -> float:
-        w = self._w
-        return float(w["w2"] @ np.maximum(w["w1"] @ ((x - w["mean"]) / w["scale"]) + w["b1"], 0.0) + w["b2"])
+        """The logit of the least favourable network for ``e_des`` (the minimum of ``sign·z``, times ``sign``)."""
+        hidden = np.split(np.maximum(self._w1 @ x + self._b1, 0.0), len(self._w2))
+        z = np.array([w2 @ h for w2, h in zip(self._w2, hidden, strict=True)]) + self._b2
+        return float(self._sign * np.min(self._sign * z))
 
     def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
         """Knots (None: fall back), multipliers and status of one solve."""
-        n = problem["n"]
-        solver = _solver(self.network, self._key, n, self.solver, self.time_limit_ms / 1e3, self.sharpness)
+        n, members = problem["n"], len(self.networks)
+        solver = _solver(self.networks, self._key, n, self.solver, self.time_limit_ms / 1e3, self.sharpness)
         slack = max(self._z_target - self._sign * self._logit(problem["x0"] + problem["a"] @ w0), 0.0)
         if solver.deadline is not None:
             solver.deadline.start(self.time_limit_ms / 1e3)
@@ -408,10 +430,10 @@ class OptimalBlender(Block):
             p=problem["p"],
             lbx=np.r_[np.full(3 * n, -np.inf), 0.0],
             ubx=np.inf,
-            lbg=np.array([0.0, -np.inf, 0.0]),
-            ubg=np.array([np.inf, 0.0, np.inf]),
-            lam_g0=self.multipliers[:3],
-            lam_x0=np.r_[np.zeros(3 * n), self.multipliers[3]],
+            lbg=np.r_[np.zeros(members), -np.inf, 0.0],
+            ubg=np.r_[np.full(members, np.inf), 0.0, np.inf],
+            lam_g0=self.multipliers[: members + 2],
+            lam_x0=np.r_[np.zeros(3 * n), self.multipliers[members + 2]],
         )
         x = np.asarray(out["x"]).ravel()
         multipliers = np.r_[np.asarray(out["lam_g"]).ravel(), np.asarray(out["lam_x"]).ravel()[-1]]

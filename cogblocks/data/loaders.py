@@ -39,6 +39,10 @@ _PHASES = ("BASELINE", "ASSOCIATION", "EXTINCTION")
 _KEPT_SUBPHASE = {"ASSOCIATION": 3, "EXTINCTION": 1}
 
 
+_LABEL_HINT = "; if the fear label has another name, map it with label_field=NAME (command line: --label-field NAME)"
+_DT_HINT = "; give the sampling step with dt=SECONDS (command line: --dt SECONDS)"
+
+
 class DataFormatError(ValueError):
     """A data file exists but its content does not follow the expected format."""
 
@@ -101,7 +105,9 @@ def _library_from_movements(
 # --- MATLAB layout of the real data set ------------------------------------------------------------
 
 
-def load_velocity_data_mat(path: PathLike, max_len: int = 200, dt: float = 0.01) -> ReachLibrary:
+def load_velocity_data_mat(
+    path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_field: str = "Condition"
+) -> ReachLibrary:
     """Load the real data set's MATLAB file (struct ``VelocityData``, one field per participant).
 
     Each participant field holds that participant's trials, as a struct array (or a cell array of
@@ -128,6 +134,8 @@ def load_velocity_data_mat(path: PathLike, max_len: int = 200, dt: float = 0.01)
         naming the participant and the trial, rather than being truncated silently.
     dt : float
         Sampling time in seconds (the motion capture ran at 100 Hz).
+    label_field : str
+        The trial field holding the fear label (``Condition``).
 
     Returns
     -------
@@ -156,7 +164,7 @@ def load_velocity_data_mat(path: PathLike, max_len: int = 200, dt: float = 0.01)
     for subject, participant in enumerate(data._fieldnames):
         for position_in_file, trial in enumerate(_participant_trials(file, participant, getattr(data, participant))):
             name = f"{file}: participant '{participant}', {_trial_label(trial, position_in_file)}"
-            fear = _trial_fear_label(name, trial)
+            fear = _trial_fear_label(name, trial, label_field)
             if fear is None:
                 continue
             velocity = _trial_velocity(name, trial)
@@ -190,9 +198,9 @@ def _trial_label(trial: Any, position_in_file: int) -> str:
     return f"trial #{position_in_file + 1} (in file order)"
 
 
-def _trial_field(name: str, trial: Any, field: str) -> Any:
+def _trial_field(name: str, trial: Any, field: str, hint: str = "") -> Any:
     if field not in trial._fieldnames:
-        raise DataFormatError(f"{name}: missing field '{field}'")
+        raise DataFormatError(f"{name}: missing field '{field}' (fields: {', '.join(trial._fieldnames)}){hint}")
     return getattr(trial, field)
 
 
@@ -203,7 +211,7 @@ def _scalar(name: str, field: str, value: Any) -> float:
     return float(array.reshape(-1)[0])
 
 
-def _trial_fear_label(name: str, trial: Any) -> bool | None:
+def _trial_fear_label(name: str, trial: Any, label_field: str = "Condition") -> bool | None:
     """Fear label of a trial, or None when the trial is not used."""
     phase_value = _trial_field(name, trial, "Phase")
     if not isinstance(phase_value, str):
@@ -215,9 +223,9 @@ def _trial_fear_label(name: str, trial: Any) -> bool | None:
         return False
     if _scalar(name, "Subphase", _trial_field(name, trial, "Subphase")) != _KEPT_SUBPHASE[phase]:
         return None
-    condition = _scalar(name, "Condition", _trial_field(name, trial, "Condition"))
+    condition = _scalar(name, label_field, _trial_field(name, trial, label_field, _LABEL_HINT))
     if condition not in (0.0, 1.0):
-        raise DataFormatError(f"{name}: Condition must be 0 (no fear) or 1 (fear), got {condition:g}")
+        raise DataFormatError(f"{name}: {label_field} must be 0 (no fear) or 1 (fear), got {condition:g}")
     return condition == 1.0
 
 
@@ -264,8 +272,11 @@ def save_npz(library: ReachLibrary, path: PathLike) -> None:
         )
 
 
-def load_npz(path: PathLike) -> ReachLibrary:
+def load_npz(path: PathLike, *, label_field: str = "fear", dt: float | None = None) -> ReachLibrary:
     """Load a library saved by :func:`save_npz` (see there for the keys and shapes).
+
+    ``label_field`` names the key of the fear label; ``dt`` (seconds), when given, replaces the
+    archive's ``dt``, which may then be absent.
 
     Raises
     ------
@@ -282,13 +293,17 @@ def load_npz(path: PathLike) -> ReachLibrary:
     if not isinstance(archive, np.lib.npyio.NpzFile):
         raise DataFormatError(f"{file}: not an npz archive (a single .npy array)")
     with archive:
-        missing = [key for key in _NPZ_KEYS if key not in archive.files]
+        names = {key: label_field if key == "fear" else key for key in _NPZ_KEYS if key != "dt" or dt is None}
+        missing = [name for name in names.values() if name not in archive.files]
         if missing:
-            raise DataFormatError(f"{file}: missing key(s) {', '.join(map(repr, missing))}")
-        arrays = {}
-        for key in _NPZ_KEYS:
+            hint = (_LABEL_HINT if label_field in missing else "") + (_DT_HINT if "dt" in missing else "")
+            raise DataFormatError(
+                f"{file}: missing key(s) {', '.join(map(repr, missing))} (keys: {', '.join(archive.files)}){hint}"
+            )
+        arrays = {} if dt is None else {"dt": np.float64(dt)}
+        for key, name in names.items():
             try:
-                arrays[key] = archive[key]
+                arrays[key] = archive[name]
             except (OSError, ValueError, zipfile.BadZipFile) as error:  # object arrays need pickle: refused
                 raise DataFormatError(f"{file}: key '{key}' is unreadable ({_unreadable(error)})") from error
     for key, array in arrays.items():
@@ -323,7 +338,7 @@ def save_csv(library: ReachLibrary, path: PathLike) -> None:
     np.savetxt(path, table, fmt=["%d"] * 5 + ["%.17g"] * 6, delimiter=",", header=",".join(CSV_COLUMNS), comments="")
 
 
-def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01) -> ReachLibrary:
+def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_field: str = "fear") -> ReachLibrary:
     """Load a long-format CSV file written by :func:`save_csv` (see there for the columns).
 
     Columns may come in any order and extra columns are ignored. Movements keep the order of
@@ -339,6 +354,8 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01) -> ReachLibra
         Padded number of samples; a longer movement raises :class:`DataFormatError`.
     dt : float
         Sampling time in seconds (not stored in the file).
+    label_field : str
+        The column of the fear label (``fear``).
 
     Returns
     -------
@@ -354,7 +371,7 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01) -> ReachLibra
         If the file is empty, lacks a column, or holds non-numeric, non-finite or inconsistent values.
     """
     file = _existing_file(path)
-    table, lines = _read_csv_table(file)
+    table, lines = _read_csv_table(file, label_field)
     bad = ~np.isfinite(table)
     if bad.any():
         row, col = np.argwhere(bad)[0]
@@ -390,8 +407,10 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01) -> ReachLibra
     return _library_from_movements(file, velocities, positions, labels, max_len, dt)
 
 
-def _read_csv_table(file: Path) -> tuple[np.ndarray, np.ndarray]:
+def _read_csv_table(file: Path, label_field: str) -> tuple[np.ndarray, np.ndarray]:
     """The known columns of a CSV file as floats (:data:`CSV_COLUMNS` order) and each row's line number.
+
+    The column ``label_field`` stands for ``fear`` when the file has no ``fear`` column.
 
     Rows are parsed as they are read, into flat arrays of numbers, so memory stays a few numbers per
     cell rather than a Python string per cell. A UTF-8 byte order mark is skipped.
@@ -403,6 +422,8 @@ def _read_csv_table(file: Path) -> tuple[np.ndarray, np.ndarray]:
             header = [cell.strip() for cell in next(reader, [])]
             if not any(header):
                 raise DataFormatError(f"{file}: empty file (expected a header with columns {', '.join(CSV_COLUMNS)})")
+            if label_field != "fear" and label_field in header and "fear" not in header:
+                header[header.index(label_field)] = "fear"
             columns = _column_indices(file, header)
             for line, row in enumerate(reader, start=2):
                 if not any(cell.strip() for cell in row):
@@ -428,7 +449,8 @@ def _column_indices(file: Path, header: list[str]) -> list[int]:
     """Where each of :data:`CSV_COLUMNS` is in the header."""
     missing = [column for column in CSV_COLUMNS if column not in header]
     if missing:
-        raise DataFormatError(f"{file}: missing column(s) {', '.join(map(repr, missing))}")
+        hint = _LABEL_HINT if "fear" in missing else ""
+        raise DataFormatError(f"{file}: missing column(s) {', '.join(map(repr, missing))}{hint}")
     duplicated = sorted({column for column in CSV_COLUMNS if header.count(column) > 1})
     if duplicated:
         raise DataFormatError(f"{file}: duplicated column(s) {', '.join(map(repr, duplicated))}")

@@ -8,10 +8,7 @@ validation figures on the held-out no-fear movements of the synthetic library.""
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -28,10 +25,11 @@ from cogblocks.amplification import (
     load_encoder,
     solution_table,
 )
+from cogblocks.amplification.judges import BLENDER_ENSEMBLE, Judges, load_ensemble
 from cogblocks.amplification.l2 import L2Amplification
-from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.blocks import Playback, Probe
-from cogblocks.data.reach import ReachLibrary, generate_reach_library
+from cogblocks.data.reach import ReachLibrary
+from cogblocks.diagrams.amplification_setup import AmplificationSetup, amplification_judges, amplification_setup
 from cogblocks.sensing import KalmanEstimator
 from cogblocks.sim import Block, Diagram, Simulator
 from cogblocks.sim.params import finite_number, one_of
@@ -39,6 +37,7 @@ from cogblocks.sim.params import finite_number, one_of
 __all__ = [
     "AmplificationSetup",
     "PAPER",
+    "amplification_judges",
     "amplification_setup",
     "plot_amplification",
     "pop_amplification",
@@ -52,70 +51,6 @@ PAPER = {
 }
 
 DELTA_POS_MM = 20.0  # terminal constraint (13c)
-
-
-@dataclass(frozen=True)
-class AmplificationSetup:
-    """The data and models of a validation run.
-
-    Attributes
-    ----------
-    library : ReachLibrary
-        The whole synthetic library.
-    train, val : numpy.ndarray of int
-        The 70/30 split: the projector searches ``movements`` (the training part), the humans
-        replayed are taken from the validation part.
-    movements : ReachLibrary
-        ``library.subset(train)``.
-    encoder : EncoderNet
-    table : SolutionTable
-        w̃ on ``movements``.
-    e_des : int
-    """
-
-    library: ReachLibrary
-    train: np.ndarray
-    val: np.ndarray
-    movements: ReachLibrary
-    encoder: EncoderNet
-    table: SolutionTable
-    e_des: int
-
-    @property
-    def humans(self) -> np.ndarray:
-        """Library indices of the validation movements that do not encode ``e_des``."""
-        return self.val[self.library.fear[self.val] != bool(self.e_des)]
-
-
-@lru_cache(maxsize=4)
-def amplification_setup(seed: int | None = None, e_des: int = 1) -> AmplificationSetup:
-    """The shipped encoder, its library, a seeded 70/30 split and w̃ on the training part.
-
-    Parameters
-    ----------
-    seed : int, optional
-        Seed of ``ReachLibrary.split``; by default the split the shipped encoder was validated on,
-        so that no replayed movement was used to train it.
-    e_des : {0, 1}
-        Desired encoding level.
-    """
-    encoder = load_encoder()
-    meta = encoder.checkpoint
-    library = generate_reach_library(int(meta["library_seed"]))
-    if meta.get("library_sha256") not in (None, library_fingerprint(library)):
-        warnings.warn(
-            "the synthetic library differs from the one the shipped encoder was trained on (the generator "
-            "changed): retrain with `python -m cogblocks.training.encoder --seed 0 --out "
-            "cogblocks/data/weights/encoder.pt` and `python -m cogblocks.training.corrector --seed 0 --out "
-            "cogblocks/data/weights/corrector.pt`",
-            UserWarning,
-            stacklevel=2,
-        )
-    split_seed = int(meta["split_seed"]) if seed is None else seed
-    train, val = library.split(float(meta["val_fraction"]), split_seed)
-    movements = library.subset(train)
-    table = solution_table(encoder, movements, e_des)
-    return AmplificationSetup(library, train, val, movements, encoder, table, e_des)
 
 
 def pop_amplification(
@@ -232,6 +167,10 @@ def run_amplification(
     e_des: int = 1,
     front_end: str = "recorded",
     noise_mm: float = 0.0,
+    setup: AmplificationSetup | None = None,
+    judges: Judges | None = None,
+    blender_networks: Sequence[EncoderNet] | None = None,
+    corrector: CorrectorNet | None = None,
 ) -> dict[str, dict[str, Any]]:
     """Replay every validation movement that does not encode ``e_des`` through the online architecture.
 
@@ -253,17 +192,40 @@ def run_amplification(
     e_des : {0, 1}
         1: make no-fear movements encode fear; 0: remove fear from fear movements.
     front_end, noise_mm : see :func:`pop_amplification` (movement ``i`` uses noise seed ``i``).
+    setup : AmplificationSetup, optional
+        Another library, split, encoder and w̃ (:func:`cogblocks.training.pipeline.run_pipeline`);
+        then ``judges`` and ``blender_networks`` must be given too.
+    judges : Judges, optional
+        The independent judges; by default :func:`amplification_judges` (shipped split only).
+    blender_networks : sequence of EncoderNet, optional
+        The ensemble the optimised variant constrains; by default the shipped encoder and
+        ``encoder_ensemble.pt``.
+    corrector : CorrectorNet, optional
+        The RL corrector's network; the shipped one by default.
 
     Returns
     -------
     dict
         Per variant: ``encoded`` (share decided as ``e_des`` by the encoder), ``terminal_ok`` (share
         whose final position is within 20 mm of the human's), ``final_distance_mm`` (mean) and ``n``;
-        for ``"optimised"`` also ``solve_ms_p50`` and ``solve_ms_p99`` (CPU time per decision, ms) and
-        ``fallbacks`` (decisions that kept the previous plan or the table's blend).
+        for ``"optimised"`` also ``solve_ms_p50`` and ``solve_ms_p99`` (CPU time per decision, ms),
+        ``fallbacks`` (decisions that kept the previous plan or the table's blend) and ``decisions``
+        (decisions that ran the solver). Judged independently: ``judges`` (share each judge decides
+        as ``e_des``), ``encoded_independent`` (the ensemble judge's share) and ``judges_agreement``
+        (share of movements on which the two judges agree whether ``e_des`` is encoded).
     """
-    setup = amplification_setup(seed, e_des)
-    factories = _corrector_factories(None)
+    if setup is None:
+        if seed is not None and judges is None:
+            raise ValueError(
+                "run_amplification: the shipped judges belong to the shipped split; with a seed pass judges"
+            )
+        setup = amplification_setup(seed, e_des)
+        judges = amplification_judges() if judges is None else judges
+        if blender_networks is None:
+            blender_networks = [setup.encoder, *load_ensemble(BLENDER_ENSEMBLE)]
+    elif judges is None or blender_networks is None:
+        raise ValueError("run_amplification: with a setup, pass its judges and blender_networks")
+    factories = _corrector_factories(corrector)
     unknown = [v for v in variants if v not in (*factories, "optimised")]
     if unknown:
         raise ValueError(
@@ -273,9 +235,9 @@ def run_amplification(
     n_steps = setup.library.max_len
     results = {}
     for variant in variants:
-        encoded, distances, solve_ms, fallbacks = [], [], [], 0
+        encoded, distances, solve_ms, fallbacks, altered = [], [], [], 0, []
         for index in humans:
-            blender = _optimal_blender(setup) if variant == "optimised" else None
+            blender = _optimal_blender(setup, blender_networks) if variant == "optimised" else None
             d = pop_amplification(
                 (setup.library.velocity[index], setup.library.position[index]),
                 setup.movements,
@@ -291,6 +253,7 @@ def run_amplification(
             trace = Simulator(d, probes={"decision": "encoder.decision"}).run(n_steps=n_steps)
             encoded.append(int(trace["decision"][-1]) == e_des)
             distances.append(float(np.linalg.norm(trace["p_a"][-1] - trace["p_h"][-1])))
+            altered.append(trace["v_a"])
             if blender is not None:
                 solve_ms.extend(blender.solve_ms)
                 fallbacks += blender.fallbacks
@@ -300,18 +263,32 @@ def run_amplification(
             "terminal_ok": float(np.mean(distances_mm <= DELTA_POS_MM)) if distances else float("nan"),
             "final_distance_mm": float(distances_mm.mean()) if distances else float("nan"),
             "n": len(humans),
+            **_judged(judges, altered, e_des),
         }
         if variant == "optimised":
             p50, p99 = np.percentile(solve_ms, [50, 99]) if solve_ms else (float("nan"), float("nan"))
-            results[variant].update(solve_ms_p50=float(p50), solve_ms_p99=float(p99), fallbacks=fallbacks)
+            results[variant].update(
+                solve_ms_p50=float(p50), solve_ms_p99=float(p99), fallbacks=fallbacks, decisions=len(solve_ms)
+            )
     return results
 
 
-def _optimal_blender(setup: AmplificationSetup) -> Block:
+def _judged(judges: Judges, altered: list[np.ndarray], e_des: int) -> dict[str, Any]:
+    if not altered:
+        return {"judges": {}, "encoded_independent": float("nan"), "judges_agreement": float("nan")}
+    verdicts = {name: d == e_des for name, d in judges.decide(np.stack(altered)).items()}
+    return {
+        "judges": {name: float(v.mean()) for name, v in verdicts.items()},
+        "encoded_independent": float(verdicts["ensemble"].mean()),
+        "judges_agreement": float(np.mean(verdicts["ensemble"] == verdicts["kinematic"])),
+    }
+
+
+def _optimal_blender(setup: AmplificationSetup, networks: Sequence[EncoderNet]) -> Block:
     # imported here: casadi (about 0.1 s to import) is loaded only when the optimised variant is asked for
     from cogblocks.amplification import OptimalBlender
 
-    return OptimalBlender(setup.movements, setup.encoder, setup.table, e_des=setup.e_des)
+    return OptimalBlender(setup.movements, list(networks), setup.table, e_des=setup.e_des)
 
 
 def plot_amplification(path: str, index: int | None = None, variant: str = "blend", seed: int | None = None) -> None:

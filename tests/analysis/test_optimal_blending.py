@@ -137,11 +137,28 @@ def test_run_amplification_and_cli(monkeypatch, capsys):
 
     result = run_amplification(("optimised",), limit=1)
     row = result["optimised"]
-    assert set(row) == {"encoded", "terminal_ok", "final_distance_mm", "n", "solve_ms_p50", "solve_ms_p99", "fallbacks"}
+    judged = {"judges", "encoded_independent", "judges_agreement"}
+    assert (
+        set(row)
+        == {
+            "encoded",
+            "terminal_ok",
+            "final_distance_mm",
+            "n",
+            "solve_ms_p50",
+            "solve_ms_p99",
+            "fallbacks",
+            "decisions",
+        }
+        | judged
+    )
     assert row["n"] == 1 and 0 < row["solve_ms_p50"] <= row["solve_ms_p99"]
-    monkeypatch.setattr(amplification, "run_amplification", lambda *args: run_amplification(*args, limit=1))
+    monkeypatch.setattr(
+        amplification, "run_amplification", lambda *args, **kwargs: run_amplification(*args, **kwargs, limit=1)
+    )
     assert main(["run", "amplification", "--json", "--variant", "blend", "--variant", "optimised"]) == 0
     printed = json.loads(capsys.readouterr().out)
-    assert list(printed) == ["blend", "optimised"] and "solve_ms_p99" in printed["optimised"]
+    assert list(printed) == ["blend", "optimised", "e_des_0"] and "solve_ms_p99" in printed["optimised"]
+    assert list(printed["e_des_0"]) == ["blend", "optimised"] and "solve_ms_p99" in printed["e_des_0"]["optimised"]
     assert main(["run", "amplification", "--variant", "optimised"]) == 0
     assert "time per decision p50" in capsys.readouterr().out

@@ -92,17 +92,24 @@ def test_cli_json_and_plot(capsys, tmp_path, monkeypatch):
     # the full validation set is the example's and the docs' job: a few movements are enough here
     full = amplification.run_amplification
 
-    def few(variants=("blend", "blend_rl", "optimised")):
-        return full(variants, limit=4)
+    def few(variants=("blend", "blend_rl", "optimised"), **kwargs):
+        return full(variants, limit=4, **kwargs)
 
     monkeypatch.setattr(amplification, "run_amplification", few)
     plot = tmp_path / "fig6.png"
     assert main(["run", "amplification", "--json", "--plot", str(plot)]) == 0
     result = json.loads(capsys.readouterr().out)
-    assert set(result) == set(PAPER) | {"optimised"}
-    for name, row in result.items():
-        extra = {"solve_ms_p50", "solve_ms_p99", "fallbacks"} if name == "optimised" else set()
-        assert set(row) == {"encoded", "terminal_ok", "final_distance_mm", "n"} | extra
+    assert set(result) == set(PAPER) | {"optimised", "e_des_0"}
+    assert set(result["e_des_0"]) == set(PAPER) | {"optimised"}
+    judged = {"judges", "encoded_independent", "judges_agreement"}
+    remove = result.pop("e_des_0")
+    for name, row in [*result.items(), *remove.items()]:
+        extra = {"solve_ms_p50", "solve_ms_p99", "fallbacks", "decisions"} if name == "optimised" else set()
+        assert set(row) == {"encoded", "terminal_ok", "final_distance_mm", "n"} | extra | judged
+        assert row["encoded_independent"] == row["judges"]["ensemble"] and set(row["judges"]) == {
+            "ensemble",
+            "kinematic",
+        }
     assert plot.stat().st_size > 1000
     assert main(["run", "amplification"]) == 0
     assert "paper 89 %" in capsys.readouterr().out

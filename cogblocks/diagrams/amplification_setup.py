@@ -1,0 +1,90 @@
+"""The data and models of the PoP of Amplification's validation: library, split, encoder, w̃ and judges."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from cogblocks.amplification import EncoderNet, SolutionTable, load_encoder, solution_table
+from cogblocks.amplification.judges import JUDGE_ENSEMBLE, EncoderEnsemble, Judges, KinematicJudge, load_ensemble
+from cogblocks.amplification.solution import library_fingerprint
+from cogblocks.data.reach import ReachLibrary, generate_reach_library
+
+__all__ = ["AmplificationSetup", "amplification_judges", "amplification_setup"]
+
+
+@dataclass(frozen=True)
+class AmplificationSetup:
+    """The data and models of a validation run.
+
+    Attributes
+    ----------
+    library : ReachLibrary
+        The whole synthetic library.
+    train, val : numpy.ndarray of int
+        The 70/30 split: the projector searches ``movements`` (the training part), the humans
+        replayed are taken from the validation part.
+    movements : ReachLibrary
+        ``library.subset(train)``.
+    encoder : EncoderNet
+    table : SolutionTable
+        w̃ on ``movements``.
+    e_des : int
+    """
+
+    library: ReachLibrary
+    train: np.ndarray
+    val: np.ndarray
+    movements: ReachLibrary
+    encoder: EncoderNet
+    table: SolutionTable
+    e_des: int
+
+    @property
+    def humans(self) -> np.ndarray:
+        """Library indices of the validation movements that do not encode ``e_des``."""
+        return self.val[self.library.fear[self.val] != bool(self.e_des)]
+
+
+@lru_cache(maxsize=4)
+def amplification_setup(seed: int | None = None, e_des: int = 1) -> AmplificationSetup:
+    """The shipped encoder, its library, a seeded 70/30 split and w̃ on the training part.
+
+    Parameters
+    ----------
+    seed : int, optional
+        Seed of ``ReachLibrary.split``; by default the split the shipped encoder was validated on,
+        so that no replayed movement was used to train it.
+    e_des : {0, 1}
+        Desired encoding level.
+    """
+    encoder = load_encoder()
+    meta = encoder.checkpoint
+    library = generate_reach_library(int(meta["library_seed"]))
+    if meta.get("library_sha256") not in (None, library_fingerprint(library)):
+        warnings.warn(
+            "the synthetic library differs from the one the shipped encoder was trained on (the generator "
+            "changed): retrain with `python -m cogblocks.training.encoder --seed 0 --out "
+            "cogblocks/data/weights/encoder.pt` and `python -m cogblocks.training.corrector --seed 0 --out "
+            "cogblocks/data/weights/corrector.pt`",
+            UserWarning,
+            stacklevel=2,
+        )
+    split_seed = int(meta["split_seed"]) if seed is None else seed
+    train, val = library.split(float(meta["val_fraction"]), split_seed)
+    movements = library.subset(train)
+    table = solution_table(encoder, movements, e_des)
+    return AmplificationSetup(library, train, val, movements, encoder, table, e_des)
+
+
+@lru_cache(maxsize=1)
+def amplification_judges() -> Judges:
+    """The independent judges of the shipped split: the shipped judge ensemble (``judges.pt``) and a
+    :class:`KinematicJudge` fitted on the split's training part (neither saw a validation movement)."""
+    setup = amplification_setup(None, 1)
+    train = setup.movements
+    kinematic = KinematicJudge(setup.library.dt).fit(train.velocity, train.fear)
+    return Judges(EncoderEnsemble(load_ensemble(JUDGE_ENSEMBLE)), kinematic)

@@ -1,0 +1,81 @@
+"""Ready live diagrams: an LSL stream in, a cognitive architecture, an LSL stream out (``cogblocks live``)."""
+
+from __future__ import annotations
+
+from cogblocks.data.groups import TABLE2
+from cogblocks.diagrams.sync import MOTIONS
+from cogblocks.live.inlet import LSLInlet
+from cogblocks.live.outlet import LSLOutlet
+from cogblocks.phase import PhaseEstimator
+from cogblocks.sensing import L1, KalmanEstimator
+from cogblocks.sim import Block, Diagram
+from cogblocks.sync import L2Sync
+
+__all__ = ["LAG", "LIVE_DIAGRAMS", "live_l1", "live_phase", "live_sync"]
+
+#: How far back the inlets read a stream: a 100 Hz sample period plus transport and jitter, so that
+#: two received samples surround the time read and the blocks see the stream on a regular grid.
+LAG = 0.02
+
+
+def _wire(arch: Block, port_in: str, port_out: str, inlet: LSLInlet, outlet: LSLOutlet) -> Diagram:
+    """inlet → arch → outlet, exposing the architecture's output, the inlet's sample, age and freshness."""
+    d = Diagram()
+    d.add("inlet", inlet)
+    d.add("arch", arch)
+    d.add("outlet", outlet)
+    d.connect(inlet.y, getattr(arch, port_in))
+    d.connect(getattr(arch, port_out), outlet.u)
+    d.expose_output(port_out, getattr(arch, port_out))
+    d.expose_output("sample", inlet.y)
+    d.expose_output("age_ms", inlet.age_ms)
+    d.expose_output("fresh", inlet.fresh)
+    return d
+
+
+def live_phase(in_stream: str, out_stream: str, *, unit: str = "mm", timeout: float = 5.0) -> Diagram:
+    """A 1-channel position stream in, its phase (:class:`~cogblocks.phase.PhaseEstimator`) out.
+
+    The inlet resamples the stream :data:`LAG` s back on the tick grid; the output stream (type
+    ``"Phase"``) carries ``theta`` in rad, wrapped to ``[0, 2π)``.
+    """
+    inlet = LSLInlet(in_stream, unit=unit, mode="interpolate", lag=LAG, timeout=timeout)
+    return _wire(PhaseEstimator(unit=unit), "p", "theta", inlet, LSLOutlet(out_stream, stream_type="Phase"))
+
+
+def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = "dqn", timeout: float = 5.0) -> Diagram:
+    """The participants' phases in (one channel each, rad), the avatar's phase θ_L2 out.
+
+    The L2 architecture of the PoP of Social Connectedness (:class:`~cogblocks.sync.L2Sync`)
+    for a group of Table 2 (its size fixes the channel count) with the motion computer ``motion``
+    (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`; the trained DQN policy by default).
+    The inlet resamples the phases :data:`LAG` s back on the tick grid, along the circle.
+    """
+    if group not in TABLE2:
+        raise ValueError(f"live_sync: group must be one of {sorted(TABLE2)}, got {group!r}")
+    params = TABLE2[group]
+    if motion not in MOTIONS:
+        raise ValueError(f"live_sync: motion must be one of {sorted(MOTIONS)}, got {motion!r}")
+    arch = L2Sync(MOTIONS[motion](params), params.assisted)
+    inlet = LSLInlet(
+        in_stream, shape=(params.n,), unit="rad", wrapped=True, mode="interpolate", lag=LAG, timeout=timeout
+    )
+    return _wire(arch, "theta", "theta_l2", inlet, LSLOutlet(out_stream, stream_type="Phase"))
+
+
+def live_l1(in_stream: str, out_stream: str, *, delay: float = 0.1, unit: str = "mm", timeout: float = 5.0) -> Diagram:
+    """A 3-channel marker stream in, the L1 avatar's delay-compensated 3D position out.
+
+    ``delay`` is how late the stream's samples arrive. The inlet resamples the stream ``delay`` +
+    :data:`LAG` s back on the tick grid, and :class:`~cogblocks.sensing.L1` (a constant-acceleration
+    Kalman filter on three axes) predicts that far ahead; the output stream (type ``"MoCap"``) has
+    channels ``x``, ``y``, ``z``.
+    """
+    arch = L1(delay + LAG, estimator=KalmanEstimator("ca", dims=3, unit=unit))
+    inlet = LSLInlet(in_stream, shape=(3,), unit=unit, mode="interpolate", lag=delay + LAG, timeout=timeout)
+    outlet = LSLOutlet(out_stream, stream_type="MoCap", channel_names=["x", "y", "z"])
+    return _wire(arch, "p", "p_avatar", inlet, outlet)
+
+
+#: The ready live diagrams by the name ``cogblocks live`` gives them.
+LIVE_DIAGRAMS = {"phase": live_phase, "sync": live_sync, "l1": live_l1}
