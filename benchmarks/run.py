@@ -38,6 +38,7 @@ MODULES = [
     "benchmarks.soak",
     "benchmarks.sweep",
     "benchmarks.live",
+    "benchmarks.loaders",
 ]
 
 

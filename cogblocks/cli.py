@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 from cogblocks.experiments.cli import add_sweep_parser
@@ -13,18 +16,108 @@ from cogblocks.live.cli import add_live_parser
 
 __all__ = ["main"]
 
+_BASE_STEP = 0.01  # seconds; the ready diagrams run at 100 Hz
+
+
+# --- option values, checked by argparse so that every error names its option ---------------------------
+
+
+def _option(convert: Callable[[str], Any]) -> Callable[[str], Any]:
+    """An argparse ``type``: ``convert(text)``, its ValueError shown by argparse with the option's name."""
+
+    def parse(text: str) -> Any:
+        try:
+            return convert(text)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+
+    return parse
+
+
+def _integer(minimum: int) -> Callable[[str], int]:
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise ValueError(f"expected an integer >= {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise ValueError(f"expected an integer >= {minimum}, got {value}")
+        return value
+
+    return convert
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"expected a number of seconds, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError(f"expected a duration > 0 s, got {text}")
+    return value
+
+
+def _duration(text: str) -> float:
+    value = _seconds(text)
+    steps = value / _BASE_STEP
+    if not math.isclose(steps, round(steps), rel_tol=0.0, abs_tol=1e-6):
+        raise ValueError(f"{text} s is not a whole number of base steps ({_BASE_STEP * 1000:g} ms)")
+    return value
+
+
+def _policy(text: str) -> str:
+    from cogblocks.diagrams.sync import MOTIONS
+
+    if text not in MOTIONS:
+        raise ValueError(f"unknown motion computer {text!r} (choose from {', '.join(sorted(MOTIONS))})")
+    return text
+
+
+def _plot_path(text: str) -> str:
+    """A figure file that can be written: an existing, writable folder and a format matplotlib saves."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    path = Path(text)
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if path.suffix.lower().lstrip(".") not in formats:
+        raise ValueError(f"{text!r}: give a file name ending in one of .{', .'.join(sorted(formats))}")
+    folder = path.parent
+    try:
+        if not folder.is_dir():
+            raise ValueError(f"{text!r}: no folder {str(folder)!r}")
+        if path.is_dir() or not os.access(folder, os.W_OK):
+            raise ValueError(f"{text!r}: cannot write a file there")
+    except OSError as error:  # e.g. a name too long for the file system
+        raise ValueError(f"{text!r}: cannot write a file there ({error.strerror})") from None
+    return text
+
+
+SEED = _option(_integer(0))  # numpy's generators take seeds >= 0
+COUNT = _option(_integer(1))
+DURATION = _option(_duration)
+STEP = _option(_seconds)
+POLICY = _option(_policy)
+PLOT_PATH = _option(_plot_path)
+
+
+# --- output ---------------------------------------------------------------------------------------------
+
 
 def _print_result(result: dict[str, Any], as_json: bool, render: Callable[[dict[str, Any]], str]) -> None:
-    if as_json:
-        print(json.dumps(result))
-    else:
-        print(render(result))
+    print(json.dumps(result) if as_json else render(result), flush=True)
+
+
+def _plot(path: str | None, draw: Callable[[str], Any]) -> None:
+    """Draw a figure to ``path`` (after the results are printed, so a failure loses none) and say so."""
+    if path:
+        draw(path)
+        print(f"wrote {path}", file=sys.stderr, flush=True)
 
 
 def _run_demo(args: argparse.Namespace) -> int:
-    from cogblocks.diagrams.demo import kuramoto_demo
+    from cogblocks.diagrams.demo import kuramoto_demo, plot_demo
 
-    result = kuramoto_demo(duration=args.duration, plot=args.plot, save_trace=args.save_trace)
+    result = kuramoto_demo(duration=args.duration, save_trace=args.save_trace)
     _print_result(
         result,
         args.json,
@@ -33,32 +126,39 @@ def _run_demo(args: argparse.Namespace) -> int:
             f"time-averaged order parameter {r['r_mean']:.4f}"
         ),
     )
+    _plot(args.plot, lambda path: plot_demo(path, duration=args.duration))
     return 0
 
 
 def _run_sync(args: argparse.Namespace) -> int:
-    from cogblocks.diagrams.sync import MOTIONS, plot_sync, run_sync
+    from cogblocks.diagrams.sync import DEFAULT_MOTIONS, plot_sync, sync_table
     from cogblocks.experiments.sync import save_sync_trace
 
-    motions = list(MOTIONS) if args.policy is None else args.policy
+    motions = list(DEFAULT_MOTIONS) if args.policy is None else args.policy
     if args.save_trace and len(motions) != 1:
         raise ValueError("--save-trace writes one run's trace: give exactly one --policy")
-    result = run_sync(args.group, motions, domain=args.domain)
-    if args.save_trace:
-        save_sync_trace(args.group, motions[0], args.domain, args.save_trace)
-    if args.plot:
-        plot_sync(args.group, motions[0], args.plot)
-
-    def render(r: dict[str, Any]) -> str:
-        lines = [f"Group {r['group']}: time-averaged order parameter without L2 {r['r_without']:.4f}"]
-        for row in r["results"]:
-            lines.append(
+    if args.save_trace and (args.duration is not None or args.seed != 0):
+        raise ValueError("--save-trace records the group's own run: drop --duration and --seed")
+    options = {"duration": args.duration, "seed": args.seed}
+    result: dict[str, Any] = {}
+    for row in sync_table(args.group, motions, args.domain, **options):
+        if not result:  # the first figure: r without L2
+            result = {**row, "results": []}
+            line = f"Group {row['group']}: time-averaged order parameter without L2 {row['r_without']:.4f}"
+        else:
+            result["results"].append(row)
+            line = (
                 f"  with L2, {row['policy']:>10}: {row['r_with']:.4f} ({row['change_pct']:+.2f} %), "
                 f"|θ_L2 − θ_L0| mean {row['mean_dev_rad']:.3f} rad, max {row['max_dev_rad']:.3f} rad"
             )
-        return "\n".join(lines)
-
-    _print_result(result, args.json, render)
+        if not args.json:  # text streams, one line per figure as soon as it is known
+            print(line, flush=True)
+    if args.json:
+        print(json.dumps(result), flush=True)
+    if args.save_trace:
+        save_sync_trace(args.group, motions[0], args.domain, args.save_trace)
+        print(f"wrote {args.save_trace}", file=sys.stderr, flush=True)
+    _plot(args.plot, lambda path: plot_sync(args.group, motions[0], path, domain=args.domain, **options))
     return 0
 
 
@@ -69,8 +169,6 @@ def _run_phase3d(args: argparse.Namespace) -> int:
         raise ValueError(f"--rate must be between 30 and 240 Hz, got {args.rate:g}")
     result = phase3d_accuracy(n_trajectories=args.trajectories, seed=args.seed, rate_hz=args.rate)
     result["chain"] = run_phase_chain(seed=args.seed)
-    if args.plot:
-        plot_phase3d(args.plot, seed=args.seed)
 
     def render(r: dict[str, Any]) -> str:
         chain = r["chain"]
@@ -85,6 +183,7 @@ def _run_phase3d(args: argparse.Namespace) -> int:
         )
 
     _print_result(result, args.json, render)
+    _plot(args.plot, lambda path: plot_phase3d(path, seed=args.seed))
     return 0
 
 
@@ -97,8 +196,6 @@ def _run_phase1d(args: argparse.Namespace) -> int:
             f"got {args.signals}, {args.duration:g}, {args.workers}"
         )
     result = evaluate_grid(seeds=EVALUATION_SEEDS[: args.signals], duration=args.duration, workers=args.workers)
-    if args.plot:
-        plot_grid(result, args.plot)
 
     def render(r: dict[str, Any]) -> str:
         lines = ["1D phase estimation on simulated sensors (errors vs the true phase after two periods, rad)"]
@@ -115,6 +212,7 @@ def _run_phase1d(args: argparse.Namespace) -> int:
         return "\n".join(lines)
 
     _print_result(result, args.json, render)
+    _plot(args.plot, lambda path: plot_grid(result, path))
     return 0
 
 
@@ -126,8 +224,6 @@ def _run_amplification(args: argparse.Namespace) -> int:
     variants = ("blend", "blend_rl", "optimised") if args.variant is None else tuple(args.variant)
     result = run_amplification(variants)
     result["e_des_0"] = run_amplification(variants, e_des=0)  # the other direction: remove fear
-    if args.plot:
-        plot_amplification(args.plot)
 
     def percent(x: float | None) -> str:
         return "–" if x is None else f"{100 * x:.0f} %"
@@ -166,6 +262,7 @@ def _run_amplification(args: argparse.Namespace) -> int:
         return "\n".join(lines)
 
     _print_result(result, args.json, render)
+    _plot(args.plot, plot_amplification)
     return 0
 
 
@@ -201,7 +298,11 @@ def _build_parser() -> argparse.ArgumentParser:
     sync = targets.add_parser("sync", help="PoP of Social Connectedness: Table 3 for one group")
     sync.add_argument("--group", type=int, choices=(1, 2, 3), default=1, help="Table 2's group number (default 1)")
     sync.add_argument(
-        "--policy", action="append", metavar="NAME", help="motion computer(s) to run (default: all); repeatable"
+        "--policy",
+        action="append",
+        type=POLICY,
+        metavar="NAME",
+        help="motion computer(s) to run: dqn, lookahead, mean, mpc (default: dqn, lookahead, mean); repeatable",
     )
     sync.add_argument(
         "--domain",
@@ -209,12 +310,21 @@ def _build_parser() -> argparse.ArgumentParser:
         default="phase",
         help="'position': the L2 works on phases estimated from simulated arm positions (default 'phase')",
     )
+    sync.add_argument(
+        "--duration", type=DURATION, metavar="SECONDS", help="simulated seconds (default: the group's, Table 2)"
+    )
+    sync.add_argument(
+        "--seed",
+        type=SEED,
+        default=0,
+        help="seed of the arm positions' sensor noise with --domain position (default 0)",
+    )
     _common(sync, trace=True)
     sync.set_defaults(handler=_run_sync)
 
     phase3d = targets.add_parser("phase3d", help="3D phase estimation accuracy and the 3D phase chain")
-    phase3d.add_argument("--trajectories", type=int, default=30, help="synthetic trajectories (default 30)")
-    phase3d.add_argument("--seed", type=int, default=0, help="seed of the trajectories (default 0)")
+    phase3d.add_argument("--trajectories", type=COUNT, default=30, help="synthetic trajectories (default 30)")
+    phase3d.add_argument("--seed", type=SEED, default=0, help="seed of the trajectories (default 0)")
     phase3d.add_argument("--rate", type=float, default=100.0, help="sampling rate in Hz, 30-240 (default 100)")
     _common(phase3d)
     phase3d.set_defaults(handler=_run_phase3d)
@@ -238,14 +348,16 @@ def _build_parser() -> argparse.ArgumentParser:
     amplification.add_argument("--library", metavar="FILE", help="run the whole chain on FILE (.mat, .npz, .csv)")
     amplification.add_argument("--out", metavar="DIR", help="with --library: where weights, tables, report go")
     amplification.add_argument("--quick", action="store_true", help="with --library: short training runs")
-    amplification.add_argument("--seed", type=int, default=0, help="with --library: seed of split and training")
+    amplification.add_argument("--seed", type=SEED, default=0, help="with --library: seed of split and training")
     amplification.add_argument("--label-field", metavar="NAME", help="with --library: the fear label's name")
-    amplification.add_argument("--dt", type=float, metavar="SECONDS", help="with --library: the sampling step")
+    amplification.add_argument("--dt", type=STEP, metavar="SECONDS", help="with --library: the sampling step")
     _common(amplification)
     amplification.set_defaults(handler=_run_amplification)
 
     demo = targets.add_parser("demo", help="a Kuramoto group (Table 2, group 3) without L2")
-    demo.add_argument("--duration", type=float, default=300.0, help="simulated seconds (default 300)")
+    demo.add_argument(
+        "--duration", type=DURATION, default=300.0, metavar="SECONDS", help="simulated seconds (default 300)"
+    )
     _common(demo, trace=True)
     demo.set_defaults(handler=_run_demo)
     add_sweep_parser(commands)
@@ -255,7 +367,9 @@ def _build_parser() -> argparse.ArgumentParser:
 
 def _common(p: argparse.ArgumentParser, trace: bool = False) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-    p.add_argument("--plot", metavar="FILE", help="save a figure to FILE (png, pdf, svg)")
+    p.add_argument(
+        "--plot", type=PLOT_PATH, metavar="FILE", help="after the results, save a figure to FILE (png, pdf, svg, ...)"
+    )
     if trace:
         p.add_argument("--save-trace", metavar="FILE", help="save the run's trace to FILE (.npz or .parquet)")
 
@@ -269,7 +383,10 @@ def _version() -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``cogblocks`` command."""
     parser = _build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)  # every option is checked here, before any simulation
+    except SystemExit as exit_:  # --help, --version, or a bad option (argparse printed why)
+        return int(exit_.code or 0)
     handler = getattr(args, "handler", None)
     if handler is None:
         parser.print_help()

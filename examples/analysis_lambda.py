@@ -1,8 +1,11 @@
 """Stability of the Blender's λ dynamics: λ∞(λ) against the bisector, and λ(t) with its settling times.
 
-Writes docs/img/analysis_lambda.png.
+Writes analysis_lambda.png into FOLDER (default: the working directory); the figure of docs/ is made with
+
+    python examples/analysis_lambda.py docs/img
 """
 
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -62,7 +65,6 @@ ax2.set(xlabel="t (s)", ylabel="λ (rad)", title="θ_ref far from θ_L0 until 4 
 ax2.legend(fontsize=8)
 fig.tight_layout()
 
-out = Path(__file__).resolve().parent.parent / "docs" / "img" / "analysis_lambda.png"
-out.parent.mkdir(parents=True, exist_ok=True)
+out = Path(sys.argv[1] if len(sys.argv) > 1 else ".") / "analysis_lambda.png"
 fig.savefig(out, dpi=110)
 print(f"wrote {out}")

@@ -1,8 +1,11 @@
 """Phase locking of the Table 2 groups, eigenvalues of a locked group, and linearize() on a diagram.
 
-Writes docs/img/linearize_kuramoto.png.
+Writes linearize_kuramoto.png into FOLDER (default: the working directory); the figure of docs/ is made with
+
+    python examples/linearize_kuramoto.py docs/img
 """
 
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -29,8 +32,8 @@ d = Diagram()
 group = d.add("group", KuramotoGroup(g3.omega, 0.8, theta0=locked.phases))
 d.expose_output("theta", group.theta)
 d.compile(0.01)
-sys = linearize(d)
-print(f"max |A_linearize − (I + dt J)| = {np.abs(sys.A - locked.discrete.A).max():.2e}")
+linear = linearize(d)
+print(f"max |A_linearize − (I + dt J)| = {np.abs(linear.A - locked.discrete.A).max():.2e}")
 
 # Group 3 against the gain: the smallest gain that locks, and the spectrum of the locked state
 low, high = g3.gain, 0.8
@@ -60,7 +63,6 @@ ax2.set(xlabel="gain", ylabel="eigenvalues of J (1/s)", title="Group 3 locked: s
 ax2.legend(fontsize=8)
 fig.tight_layout()
 
-out = Path(__file__).resolve().parent.parent / "docs" / "img" / "linearize_kuramoto.png"
-out.parent.mkdir(parents=True, exist_ok=True)
+out = Path(sys.argv[1] if len(sys.argv) > 1 else ".") / "linearize_kuramoto.png"
 fig.savefig(out, dpi=110)
 print(f"wrote {out}")

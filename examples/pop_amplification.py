@@ -1,4 +1,12 @@
-"""PoP of Amplification: a held-out no-fear reach made to encode fear, then the RL corrector swapped in."""
+"""PoP of Amplification: a held-out no-fear reach made to encode fear, then the RL corrector swapped in.
+
+Writes pop_amplification_fig6.png into the folder given as the first argument (default: the working directory)::
+
+    python examples/pop_amplification.py [FOLDER]
+"""
+
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -29,4 +37,6 @@ print(
     f"final distance {np.linalg.norm(trace['p_a'][-1] - trace['p_h'][-1]):.1f} mm"
 )
 
-plot_amplification("pop_amplification_fig6.png")
+figure = Path(sys.argv[1] if len(sys.argv) > 1 else ".") / "pop_amplification_fig6.png"
+plot_amplification(figure)
+print(f"wrote {figure}")

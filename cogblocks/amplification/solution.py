@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import hashlib
 import os
+import tempfile
+import warnings
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -143,17 +146,43 @@ def solution_table(
         directory = default_cache_dir() if cache_dir == "default" else Path(cache_dir)
         key = _table_key(network, library, e_des, grid_points, threshold, rest_speed)
         path = directory / f"w_tilde_{key[:20]}.npz"
-        if path.exists():
-            with np.load(path) as cached:
-                if str(cached["key"]) == key:
-                    return SolutionTable(cached["values"], rows, cols, e_des, grid)
+        cached = _read_cache(path, key, (len(rows), len(cols)))
+        if cached is not None:
+            return SolutionTable(cached, rows, cols, e_des, grid)
     values = _solve(network, library, rows, cols, e_des, grid, threshold, rest_speed, chunk)
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        partial = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
-        np.savez(partial, values=values, key=np.array(key))
-        os.replace(partial, path)  # atomic: a concurrent reader never sees half a file
+        _write_cache(path, values=values, key=np.array(key))
     return SolutionTable(values, rows, cols, e_des, grid)
+
+
+def _read_cache(path: Path, key: str, shape: tuple[int, int]) -> np.ndarray | None:
+    """The cached table at ``path``, or None when there is none or it is unreadable (warned, then rebuilt)."""
+    if not path.exists():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as cached:
+            if str(cached["key"]) != key:  # the first 20 hex digits of another key: rebuilt, not an error
+                return None
+            values = cached["values"]
+        if values.shape != shape or not np.all((values >= 0.0) & (values <= 1.0)):
+            raise ValueError(f"values of shape {values.shape} outside [0, 1] or not {shape}")
+    except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile) as error:
+        warnings.warn(f"{path}: corrupt w̃ cache file ({type(error).__name__}: {error}); rebuilding it", stacklevel=3)
+        return None
+    return values
+
+
+def _write_cache(path: Path, **arrays: np.ndarray) -> None:
+    """Write an npz file atomically: a reader, even in another process, never sees half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    descriptor, partial = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(descriptor, "wb") as stream:
+            np.savez(stream, **arrays)
+        os.replace(partial, path)
+    except BaseException:
+        Path(partial).unlink(missing_ok=True)
+        raise
 
 
 def _table_key(

@@ -3,7 +3,8 @@
 Every reader returns a :class:`~cogblocks.data.reach.ReachLibrary` padded to ``max_len`` samples
 (velocity with zeros, position by holding the last position). A malformed file raises
 :class:`DataFormatError` whose message starts with the file name and says what is wrong; a missing
-file raises :class:`FileNotFoundError` naming the path.
+file raises :class:`FileNotFoundError` and a directory :class:`IsADirectoryError`, both naming the
+path. Pickled Python objects are never loaded (loading them can run arbitrary code).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import csv
 import errno
 import os
 import zipfile
+from array import array as flat_array
 from pathlib import Path
 from typing import Any
 
@@ -51,11 +53,20 @@ PathLike = str | os.PathLike
 def _existing_file(path: PathLike) -> Path:
     """``path`` as a Path, after checking that it is a non-empty file."""
     file = Path(path)
+    if file.is_dir():
+        raise IsADirectoryError(errno.EISDIR, f"{os.strerror(errno.EISDIR)}, expected a file", str(path))
     if not file.is_file():
         raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), str(path))
     if file.stat().st_size == 0:
         raise DataFormatError(f"{file}: empty file")
     return file
+
+
+def _unreadable(error: Exception) -> str:
+    """Why numpy refused an array, without numpy's advice to load pickled data (unsafe)."""
+    if "pickle" in str(error).lower():
+        return "it holds pickled Python objects, which are never loaded: loading them can run arbitrary code"
+    return str(error)
 
 
 def _is_real(dtype: np.dtype) -> bool:
@@ -278,7 +289,7 @@ def load_npz(path: PathLike, *, label_field: str = "fear", dt: float | None = No
     try:
         archive = np.load(file, allow_pickle=False)
     except (OSError, EOFError, ValueError, zipfile.BadZipFile) as error:
-        raise DataFormatError(f"{file}: not an npz archive ({error})") from error
+        raise DataFormatError(f"{file}: not an npz archive ({_unreadable(error)})") from error
     if not isinstance(archive, np.lib.npyio.NpzFile):
         raise DataFormatError(f"{file}: not an npz archive (a single .npy array)")
     with archive:
@@ -294,7 +305,7 @@ def load_npz(path: PathLike, *, label_field: str = "fear", dt: float | None = No
             try:
                 arrays[key] = archive[name]
             except (OSError, ValueError, zipfile.BadZipFile) as error:  # object arrays need pickle: refused
-                raise DataFormatError(f"{file}: key '{key}' is unreadable ({error})") from error
+                raise DataFormatError(f"{file}: key '{key}' is unreadable ({_unreadable(error)})") from error
     for key, array in arrays.items():
         if not _is_real(array.dtype):
             raise DataFormatError(f"{file}: key '{key}' is not numeric (dtype {array.dtype})")
@@ -332,7 +343,8 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_fiel
 
     Columns may come in any order and extra columns are ignored. Movements keep the order of
     their first row; within a movement, rows may come in any order but ``t`` must cover
-    ``0 .. T-1`` exactly once, and ``subject``, ``fear`` and ``target`` must not change.
+    ``0 .. T-1`` exactly once, and ``subject``, ``fear`` and ``target`` must not change. A UTF-8
+    byte order mark is skipped. Time and memory are linear in the number of rows.
 
     Parameters
     ----------
@@ -353,33 +365,13 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_fiel
     ------
     FileNotFoundError
         If ``path`` does not exist.
+    IsADirectoryError
+        If ``path`` is a directory.
     DataFormatError
         If the file is empty, lacks a column, or holds non-numeric, non-finite or inconsistent values.
     """
     file = _existing_file(path)
-    try:
-        with open(file, newline="", encoding="utf-8") as stream:
-            rows = list(csv.reader(stream))
-    except (UnicodeDecodeError, csv.Error) as error:
-        raise DataFormatError(f"{file}: not a CSV text file ({error})") from error
-    if not rows or not any(cell.strip() for cell in rows[0]):
-        raise DataFormatError(f"{file}: empty file (expected a header with columns {', '.join(CSV_COLUMNS)})")
-    header = [cell.strip() for cell in rows[0]]
-    if label_field != "fear" and label_field in header and "fear" not in header:
-        header[header.index(label_field)] = "fear"
-    missing = [column for column in CSV_COLUMNS if column not in header]
-    if missing:
-        hint = _LABEL_HINT if "fear" in missing else ""
-        raise DataFormatError(f"{file}: missing column(s) {', '.join(map(repr, missing))}{hint}")
-    duplicated = sorted({column for column in CSV_COLUMNS if header.count(column) > 1})
-    if duplicated:
-        raise DataFormatError(f"{file}: duplicated column(s) {', '.join(map(repr, duplicated))}")
-    body = [(line, row) for line, row in enumerate(rows[1:], start=2) if any(cell.strip() for cell in row)]
-    if not body:
-        raise DataFormatError(f"{file}: no data rows after the header")
-
-    table = _numeric_table(file, header, body)
-    lines = np.array([line for line, _ in body])
+    table, lines = _read_csv_table(file, label_field)
     bad = ~np.isfinite(table)
     if bad.any():
         row, col = np.argwhere(bad)[0]
@@ -389,14 +381,19 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_fiel
         row, col = np.argwhere(integral != np.round(integral))[0]
         raise DataFormatError(f"{file}: line {lines[row]}, column '{CSV_COLUMNS[col]}': expected an integer")
 
+    # One sort by (movement, t) groups the rows: linear in the movements after it, where selecting each
+    # movement's rows from the whole table would be quadratic.
+    order = np.lexsort((table[:, 4], table[:, 0]))
+    table = table[order]
+    starts = np.flatnonzero(np.r_[True, table[1:, 0] != table[:-1, 0]])
+    ends = np.r_[starts[1:], len(table)]
+    first_rows = np.minimum.reduceat(order, starts)  # movements keep the order of their first row
     velocities: list[np.ndarray] = []
     positions: list[np.ndarray] = []
     labels: dict[str, list[int]] = {"fear": [], "subject": [], "target": []}
-    movement_ids, first_rows = np.unique(table[:, 0], return_index=True)
-    for movement in movement_ids[np.argsort(first_rows)]:
-        rows_of_movement = table[table[:, 0] == movement]
-        rows_of_movement = rows_of_movement[np.argsort(rows_of_movement[:, 4], kind="stable")]
-        n = len(rows_of_movement)
+    for m in np.argsort(first_rows):
+        rows_of_movement = table[starts[m] : ends[m]]
+        movement, n = rows_of_movement[0, 0], len(rows_of_movement)
         if not np.array_equal(rows_of_movement[:, 4], np.arange(n)):
             raise DataFormatError(f"{file}: movement {movement:g}: t must be 0..{n - 1}, each once")
         if n > max_len:
@@ -410,21 +407,54 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_fiel
     return _library_from_movements(file, velocities, positions, labels, max_len, dt)
 
 
-def _numeric_table(file: Path, header: list[str], body: list[tuple[int, list[str]]]) -> np.ndarray:
-    """The known columns of the CSV body as floats, in :data:`CSV_COLUMNS` order."""
-    columns = [header.index(column) for column in CSV_COLUMNS]
-    table = np.empty((len(body), len(CSV_COLUMNS)))
-    for r, (line, row) in enumerate(body):
-        if len(row) != len(header):
-            raise DataFormatError(f"{file}: line {line}: {len(row)} fields, the header has {len(header)}")
-        try:
-            table[r] = [float(row[k]) for k in columns]
-        except ValueError:
-            name, text = next(
-                (name, row[k]) for name, k in zip(CSV_COLUMNS, columns, strict=True) if not _is_number(row[k])
-            )
-            raise DataFormatError(f"{file}: line {line}, column '{name}': {text!r} is not a number") from None
-    return table
+def _read_csv_table(file: Path, label_field: str) -> tuple[np.ndarray, np.ndarray]:
+    """The known columns of a CSV file as floats (:data:`CSV_COLUMNS` order) and each row's line number.
+
+    The column ``label_field`` stands for ``fear`` when the file has no ``fear`` column.
+
+    Rows are parsed as they are read, into flat arrays of numbers, so memory stays a few numbers per
+    cell rather than a Python string per cell. A UTF-8 byte order mark is skipped.
+    """
+    values, lines = flat_array("d"), flat_array("q")
+    try:
+        with open(file, newline="", encoding="utf-8-sig") as stream:
+            reader = csv.reader(stream)
+            header = [cell.strip() for cell in next(reader, [])]
+            if not any(header):
+                raise DataFormatError(f"{file}: empty file (expected a header with columns {', '.join(CSV_COLUMNS)})")
+            if label_field != "fear" and label_field in header and "fear" not in header:
+                header[header.index(label_field)] = "fear"
+            columns = _column_indices(file, header)
+            for line, row in enumerate(reader, start=2):
+                if not any(cell.strip() for cell in row):
+                    continue
+                if len(row) != len(header):
+                    raise DataFormatError(f"{file}: line {line}: {len(row)} fields, the header has {len(header)}")
+                try:
+                    values.extend([float(row[k]) for k in columns])
+                except ValueError:
+                    name, text = next(
+                        (name, row[k]) for name, k in zip(CSV_COLUMNS, columns, strict=True) if not _is_number(row[k])
+                    )
+                    raise DataFormatError(f"{file}: line {line}, column '{name}': {text!r} is not a number") from None
+                lines.append(line)
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise DataFormatError(f"{file}: not a CSV text file ({error})") from error
+    if not lines:
+        raise DataFormatError(f"{file}: no data rows after the header")
+    return np.frombuffer(values, dtype=np.float64).reshape(-1, len(CSV_COLUMNS)), np.frombuffer(lines, dtype=np.int64)
+
+
+def _column_indices(file: Path, header: list[str]) -> list[int]:
+    """Where each of :data:`CSV_COLUMNS` is in the header."""
+    missing = [column for column in CSV_COLUMNS if column not in header]
+    if missing:
+        hint = _LABEL_HINT if "fear" in missing else ""
+        raise DataFormatError(f"{file}: missing column(s) {', '.join(map(repr, missing))}{hint}")
+    duplicated = sorted({column for column in CSV_COLUMNS if header.count(column) > 1})
+    if duplicated:
+        raise DataFormatError(f"{file}: duplicated column(s) {', '.join(map(repr, duplicated))}")
+    return [header.index(column) for column in CSV_COLUMNS]
 
 
 def _is_number(text: str) -> bool:

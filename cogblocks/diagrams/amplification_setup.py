@@ -67,8 +67,9 @@ def amplification_setup(seed: int | None = None, e_des: int = 1) -> Amplificatio
     if meta.get("library_sha256") not in (None, library_fingerprint(library)):
         warnings.warn(
             "the synthetic library differs from the one the shipped encoder was trained on (the generator "
-            "changed): retrain with `python -m cogblocks.training.encoder --seed 0` and "
-            "`python -m cogblocks.training.corrector --seed 0`",
+            "changed): retrain with `python -m cogblocks.training.encoder --seed 0 --out "
+            "cogblocks/data/weights/encoder.pt` and `python -m cogblocks.training.corrector --seed 0 --out "
+            "cogblocks/data/weights/corrector.pt`",
             UserWarning,
             stacklevel=2,
         )

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import os
+import sys
+from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -10,12 +13,14 @@ import numpy as np
 from cogblocks.blocks import Demux, Mux, Probe, Substitute
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.phase import PhaseEstimator
-from cogblocks.sim import Block, Diagram, Simulator
-from cogblocks.sim.params import one_of
+from cogblocks.sim import Block, Diagram, Simulator, Trace
+from cogblocks.sim.params import finite_number, one_of
 from cogblocks.sync import ArmPositions, Blender, KuramotoGroup, MeanPhaseMotion, MotionComputer, OrderParameter
 from cogblocks.sync.l2 import L2Sync
 
-__all__ = ["MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync"]
+__all__ = ["DEFAULT_MOTIONS", "MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync", "simulate", "sync_table"]
+
+_LONG_RUN = 20_000  # ticks from which a run in a terminal shows a progress bar, as the Simulator's default
 
 
 def _mean_motion(group: SyncGroup) -> Block:
@@ -57,6 +62,10 @@ MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "mean": _mean_motion,
     "mpc": _mpc_motion,
 }
+
+#: What ``run_sync`` and ``cogblocks run sync --group N`` run without a policy list: the Table 3
+#: comparison as first published here (``mpc`` is slower and runs when asked for by name).
+DEFAULT_MOTIONS = ("dqn", "lookahead", "mean")
 
 
 def _group_of(group: int | SyncGroup) -> SyncGroup:
@@ -161,74 +170,173 @@ def pop_sync(
 
 
 def _deviation(trace: Any) -> np.ndarray:
-    return np.abs(np.angle(np.exp(1j * (trace["theta_l2"] - trace["theta_l0"]))))
+    return np.abs(_wrapped_difference(trace["theta_l2"], trace["theta_l0"]))
 
 
-def run_sync(group: int | SyncGroup = 1, motions: list[str] | None = None, domain: str = "phase") -> dict[str, Any]:
+def _wrapped_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.angle(np.exp(1j * (a - b)))
+
+
+def simulate(
+    diagram: Diagram, n_steps: int, probes: dict[str, str] | None = None, *, label: str, progress: bool | None = None
+) -> Trace:
+    """Run ``diagram`` for ``n_steps`` ticks under a progress bar named ``label``.
+
+    ``progress=None`` shows the bar as the :class:`Simulator` would (long runs, standard error a
+    terminal, ``CI`` unset); the name tells which of several runs the bar belongs to. The run is
+    the same, tick for tick, with or without the bar.
+    """
+    sim = Simulator(diagram, probes=probes, progress=False)
+    if progress is None:
+        progress = n_steps >= _LONG_RUN and sys.stderr.isatty() and not os.environ.get("CI")
+    if not progress:
+        return sim.run(n_steps=n_steps)
+    from tqdm import tqdm
+
+    parts = []
+    chunk = max(1000, n_steps // 200)
+    with tqdm(total=n_steps, unit="tick", desc=label, leave=False) as bar:
+        for start in range(0, n_steps, chunk):
+            parts.append(sim.run(n_steps=min(chunk, n_steps - start)))
+            bar.update(len(parts[-1].t))
+    signals = {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
+    return Trace(np.concatenate([part.t for part in parts]), signals, parts[0].units)
+
+
+def _checked(group: int | SyncGroup, motions: list[str] | None, duration: float | None) -> tuple[SyncGroup, list]:
+    """The group's parameters (with ``duration`` if given) and the motion computers, checked before any run."""
+    params = _group_of(group)
+    if duration is not None:
+        params = replace(params, duration=finite_number("run_sync", "duration", duration, low=0.0, low_open=True))
+    motions = list(DEFAULT_MOTIONS) if motions is None else list(motions)
+    unknown = [name for name in motions if isinstance(name, str) and name not in MOTIONS]
+    if unknown:
+        raise ValueError(f"run_sync: unknown motion computer(s) {unknown}; known: {sorted(MOTIONS)}")
+    return params, motions
+
+
+def sync_table(
+    group: int | SyncGroup = 1,
+    motions: list[str] | None = None,
+    domain: str = "phase",
+    *,
+    duration: float | None = None,
+    seed: int = 0,
+    progress: bool | None = None,
+) -> Iterator[dict[str, Any]]:
+    """Table 3 for one group, one figure as soon as it is computed (see :func:`run_sync`).
+
+    Yields first ``{"group", "domain", "r_without"}``, then one row ``{"policy", "r_with",
+    "change_pct", "mean_dev_rad", "max_dev_rad"}`` per motion computer. Progress bars are named
+    after the group and the run (``progress`` as in :func:`simulate`).
+    """
+    params, motions = _checked(group, motions, duration)
+    number = group if isinstance(group, int) else params.name
+    n_steps = round(params.duration / 0.01) + 1
+    without = simulate(pop_sync(params, l2=False), n_steps, label=f"group {number}, without L2", progress=progress)
+    r_without = float(without["r"].mean())
+    yield {"group": number, "domain": domain, "r_without": r_without}
+    for name in motions:
+        probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0"}
+        diagram = pop_sync(params, l2=True, motion=name, domain=domain, seed=seed)
+        label = f"group {number}, L2 with {name if isinstance(name, str) else type(name).__name__}"
+        trace = simulate(diagram, n_steps, probes, label=label, progress=progress)
+        r_with = float(trace["r"].mean())
+        dev = _deviation(trace)
+        yield {
+            "policy": name,
+            "r_with": r_with,
+            "change_pct": 100.0 * (r_with - r_without) / r_without,
+            "mean_dev_rad": float(dev.mean()),
+            "max_dev_rad": float(dev.max()),
+        }
+
+
+def run_sync(
+    group: int | SyncGroup = 1,
+    motions: list[str] | None = None,
+    domain: str = "phase",
+    *,
+    duration: float | None = None,
+    seed: int = 0,
+    progress: bool | None = None,
+) -> dict[str, Any]:
     """Table 3 for one group: the time-averaged order parameter without and with L2.
 
     The average is over every sample ``t = 0 … T`` (T/dt + 1 ticks, r(0) = 1), as
     in the deliverable. ``domain="position"`` runs the L2 architecture on
-    phases estimated from arm positions (see :func:`pop_sync`).
+    phases estimated from arm positions (see :func:`pop_sync`), with sensor noise
+    seeded by ``seed``. ``duration`` (seconds) replaces the group's T. Every motion
+    computer name is checked before the first run.
 
     Returns
     -------
     dict
-        ``{"group", "r_without", "results": [{"policy", "r_with", "change_pct",
+        ``{"group", "domain", "r_without", "results": [{"policy", "r_with", "change_pct",
         "mean_dev_rad", "max_dev_rad"}, ...]}``; the deviations are
         ``|wrap(θ_L2 − θ_L0)|`` over the run.
     """
-    params = _group_of(group)
-    motions = list(MOTIONS) if motions is None else motions
-    n_steps = round(params.duration / 0.01) + 1
-    r_without = float(Simulator(pop_sync(params, l2=False)).run(n_steps=n_steps)["r"].mean())
-    results = []
-    for name in motions:
-        probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0"}
-        sim = Simulator(pop_sync(params, l2=True, motion=name, domain=domain), probes=probes)
-        trace = sim.run(n_steps=n_steps)
-        r_with = float(trace["r"].mean())
-        dev = _deviation(trace)
-        results.append(
-            {
-                "policy": name,
-                "r_with": r_with,
-                "change_pct": 100.0 * (r_with - r_without) / r_without,
-                "mean_dev_rad": float(dev.mean()),
-                "max_dev_rad": float(dev.max()),
-            }
-        )
-    number = group if isinstance(group, int) else params.name
-    return {"group": number, "domain": domain, "r_without": r_without, "results": results}
+    head, *rows = sync_table(group, motions, domain, duration=duration, seed=seed, progress=progress)
+    return {**head, "results": rows}
 
 
-def plot_sync(group: int | SyncGroup, motion: str | Block, path: str) -> None:
-    """Draw the analogues of Figures 9 and 10: r with and without L2; θ_L0, θ_ref and θ_L2."""
+def plot_sync(
+    group: int | SyncGroup,
+    motion: str | Block,
+    path: str,
+    *,
+    duration: float | None = None,
+    window: float = 10.0,
+    domain: str = "phase",
+    seed: int = 0,
+) -> None:
+    """Draw the analogues of Figures 9 and 10 and save them to ``path``.
+
+    Top: r with and without L2 over the whole run. Middle: the phase differences
+    wrap(θ_ref − θ_L0) and wrap(θ_L2 − θ_L0) over the whole run (bounded, unlike the phases
+    themselves). Bottom: θ_L0, θ_ref and θ_L2 over the last ``window`` seconds (at most a quarter
+    of the run; shaded above), where the wrapped phases can be told apart.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    params = _group_of(group)
-    n_steps = round(params.duration / 0.01) + 1
-    without = Simulator(pop_sync(params, l2=False)).run(n_steps=n_steps)
-    probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0", "theta_ref": "l2.theta_ref"}
-    with_l2 = Simulator(pop_sync(params, l2=True, motion=motion), probes=probes).run(n_steps=n_steps)
+    params, _ = _checked(group, [motion], duration)
     label = motion if isinstance(motion, str) else type(motion).__name__
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    ax1.plot(without.t, without["r"], label="without L2", color="0.4")
-    ax1.plot(with_l2.t, with_l2["r"], label=f"with L2 ({label})", color="tab:blue")
+    n_steps = round(params.duration / 0.01) + 1
+    without = simulate(pop_sync(params, l2=False), n_steps, label="plot, without L2")
+    probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0", "theta_ref": "l2.theta_ref"}
+    diagram = pop_sync(params, l2=True, motion=motion, domain=domain, seed=seed)
+    with_l2 = simulate(diagram, n_steps, probes, label=f"plot, L2 with {label}")
+    t = with_l2.t
+    zoom = t >= t[-1] - min(window, t[-1] / 4)  # a short run is zoomed too
+    fig, (ax1, ax2, ax3) = plt.subplots(3, 1, figsize=(9, 8.5))
+    ax1.plot(without.t, without["r"], label="without L2", color="0.4", lw=1)
+    ax1.plot(t, with_l2["r"], label=f"with L2 ({label})", color="tab:blue", lw=1)
     ax1.set_ylabel("order parameter r")
     ax1.legend(loc="lower right")
-    ax1.set_title(f"{params.name}: Figure 9 and 10 analogues")
-    labels = {"theta_l0": ("θ_L0", "k-"), "theta_ref": ("θ_ref", "g--"), "theta_l2": ("θ_L2", "b-")}
-    for name, (text, style) in labels.items():
-        phase = with_l2[name].copy()
-        phase[1:][np.diff(phase) < -np.pi] = np.nan  # break the line where the phase wraps
-        ax2.plot(with_l2.t, phase, style, lw=1, label=text)
-    ax2.set_ylabel("phase [rad]")
-    ax2.set_xlabel("t [s]")
+    ax1.set_title(f"{params.name}: Figures 9 and 10 analogues ({domain} domain)")
+    for name, text, style in (("theta_ref", "θ_ref − θ_L0", "g-"), ("theta_l2", "θ_L2 − θ_L0", "b-")):
+        difference = _wrapped_difference(with_l2[name], with_l2["theta_l0"])
+        difference[1:][np.abs(np.diff(difference)) > np.pi] = np.nan  # no vertical line where it wraps
+        ax2.plot(t, difference, style, lw=0.8, label=text)
+    ax2.set_ylim(-np.pi, np.pi)
+    ax2.set_yticks([-np.pi, -np.pi / 2, 0, np.pi / 2, np.pi], ["−π", "−π/2", "0", "π/2", "π"])
+    ax2.set_ylabel("phase difference [rad]")
     ax2.legend(loc="upper right")
+    for ax in (ax1, ax2):
+        if not zoom.all():
+            ax.axvspan(t[zoom][0], t[-1], color="0.9", zorder=0)
+        ax.set_xlim(t[0], t[-1])
+    for name, text, style in (("theta_l0", "θ_L0", "k-"), ("theta_ref", "θ_ref", "g--"), ("theta_l2", "θ_L2", "b-")):
+        phase = with_l2[name][zoom].copy()
+        phase[1:][np.diff(phase) < -np.pi] = np.nan  # break the line where the phase wraps
+        ax3.plot(t[zoom], phase, style, lw=1.2, label=text)
+    ax3.set_ylabel("phase [rad]")
+    ax3.set_xlabel("t [s]")
+    ax3.set_title(f"the last {t[-1] - t[zoom][0]:g} s", fontsize="medium", loc="left")
+    ax3.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=3, frameon=False)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -2,7 +2,11 @@
 
 Usage::
 
-    python -m cogblocks.training.corrector --seed 0 [--episodes 1100] [--out cogblocks/data/weights/corrector.pt]
+    python -m cogblocks.training.corrector --seed 0 [--episodes 1100] [--out corrector.pt]
+
+The checkpoint goes to ``--out``, by default ``corrector.pt`` in the working directory: the weights
+shipped with the package (``cogblocks/data/weights/corrector.pt``) are replaced only when ``--out``
+names them.
 
 The settings of the notes: a :class:`~cogblocks.amplification.CorrectorNet` (two hidden layers of 128
 ReLU units, 8 actions), discount 0.99 per tick, Adam with learning rate 1e-3, ε-greedy exploration
@@ -44,7 +48,8 @@ from cogblocks.training.dqn import DQNLearner, ReplayBuffer
 
 __all__ = ["CorrectorConfig", "TrainingResult", "evaluate", "main", "train"]
 
-DEFAULT_OUT = Path(__file__).resolve().parent.parent / "data" / "weights" / "corrector.pt"
+DEFAULT_OUT = Path("corrector.pt")  # in the working directory, never the shipped weights by default
+SHIPPED = Path(__file__).resolve().parent.parent / "data" / "weights" / "corrector.pt"
 
 
 @dataclass(frozen=True)
@@ -192,8 +197,7 @@ def training_episodes(seed: int | None = None) -> Episodes:
     return record_episodes(setup.movements, setup.table, humans)
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    """Command-line entry point: record the movements, train, save the selected network."""
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m cogblocks.training.corrector",
         description="Train the RL corrector of the PoP of Amplification (DQN, terminal-position constraint).",
@@ -205,8 +209,18 @@ def main(argv: Sequence[str] | None = None) -> None:
         default=CorrectorConfig.episodes,
         help=f"training episodes of 200 ticks (default {CorrectorConfig.episodes})",
     )
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"checkpoint to write (default {DEFAULT_OUT})")
-    args = parser.parse_args(argv)
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=DEFAULT_OUT,
+        help=f"checkpoint to write (default {DEFAULT_OUT} in the working directory; the shipped one is {SHIPPED})",
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Command-line entry point: record the movements, train, save the selected network."""
+    args = _parser().parse_args(argv)
 
     torch.set_num_threads(1)
     started = time.perf_counter()
@@ -230,7 +244,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     print(
         f"saved the network of episode {result.best_episode} (return {best['return']:.0f}, terminal ok "
-        f"{best['terminal_ok']:.2f}) to {args.out} after {time.perf_counter() - started:.0f} s"
+        f"{best['terminal_ok']:.2f}) to {args.out.resolve()} after {time.perf_counter() - started:.0f} s"
     )
 
 

@@ -2,7 +2,11 @@
 
 Usage::
 
-    python -m cogblocks.training.encoder --seed 0 [--epochs N] [--out cogblocks/data/weights/encoder.pt]
+    python -m cogblocks.training.encoder --seed 0 [--epochs N] [--out encoder.pt]
+
+The checkpoint goes to ``--out``, by default ``encoder.pt`` in the working directory: the weights
+shipped with the package (``cogblocks/data/weights/encoder.pt``) are replaced only when ``--out``
+names them.
 
 As in the appendix paper (section V-B): the inputs are the library's velocities restricted to each
 movement's duration and resampled to 20 points per axis (60 inputs); the network is
@@ -37,7 +41,8 @@ from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
 __all__ = ["EncoderConfig", "FoldResult", "class_report", "cross_validate", "main", "train_network"]
 
-DEFAULT_OUT = Path(__file__).resolve().parent.parent / "data" / "weights" / "encoder.pt"
+DEFAULT_OUT = Path("encoder.pt")  # in the working directory, never the shipped weights by default
+SHIPPED = Path(__file__).resolve().parent.parent / "data" / "weights" / "encoder.pt"
 
 
 @dataclass(frozen=True)
@@ -210,8 +215,7 @@ def format_table(results: Sequence[FoldResult]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    """Command-line entry point: cross-validate, print the table, save the best network."""
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m cogblocks.training.encoder",
         description="Train the encoding classifier of the PoP of Amplification (5 random 70/30 splits).",
@@ -223,8 +227,18 @@ def main(argv: Sequence[str] | None = None) -> None:
         default=EncoderConfig.epochs,
         help=f"passes over the training data (default {EncoderConfig.epochs})",
     )
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"checkpoint to write (default {DEFAULT_OUT})")
-    args = parser.parse_args(argv)
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=DEFAULT_OUT,
+        help=f"checkpoint to write (default {DEFAULT_OUT} in the working directory; the shipped one is {SHIPPED})",
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Command-line entry point: cross-validate, print the table, save the best network."""
+    args = _parser().parse_args(argv)
 
     torch.set_num_threads(1)
     config = EncoderConfig(epochs=args.epochs)
@@ -255,7 +269,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     torch.save(checkpoint, args.out)
     print(format_table(results))
     print(
-        f"saved the network of split seed {best.split_seed} (accuracy {best.accuracy:.3f}) to {args.out} "
+        f"saved the network of split seed {best.split_seed} (accuracy {best.accuracy:.3f}) to {args.out.resolve()} "
         f"after {time.perf_counter() - started:.0f} s"
     )
 

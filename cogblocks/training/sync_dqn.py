@@ -298,8 +298,7 @@ def _train(
     return TrainingResult(network=online, history=history, best=best_check)
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    """Command-line entry point: train, report the selected network's evaluation and save its ``state_dict``."""
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m cogblocks.training.sync_dqn",
         description="Train the DQN L3 motion computer (PoP of Social Connectedness) in the closed loop with L2.",
@@ -318,7 +317,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         action="store_true",
         help="smoke test: 20 s episodes, fewer copies, rounds and checks (about a minute)",
     )
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Command-line entry point: train, report the selected network's evaluation and save its ``state_dict``."""
+    args = _parser().parse_args(argv)
 
     config = QUICK_CONFIG if args.quick else DQNConfig()
     if args.episodes is not None:
@@ -330,7 +334,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     best = result.history[result.best]
     changes = ", ".join(f"group {g} {c:+.2f} %" for g, c in best["change_pct"].items())
     print(
-        f"saved the network of episode {best['episode']:.2f} ({changes}) to {args.out} "
+        f"saved the network of episode {best['episode']:.2f} ({changes}) to {args.out.resolve()} "
         f"after {time.perf_counter() - started:.0f} s"
     )
 

@@ -118,6 +118,29 @@ def test_solution_table_cache(small, tmp_path):
     assert len(list(tmp_path.glob("w_tilde_*.npz"))) == 2
 
 
+@pytest.mark.parametrize("damage", ["truncated", "garbage", "wrong values"])
+def test_corrupt_solution_table_cache_is_reported_and_rebuilt(small, tmp_path, damage):
+    net = tiny_network()
+    first = solution_table(net, small, cache_dir=tmp_path, grid_points=8)
+    (path,) = tmp_path.glob("w_tilde_*.npz")
+    content = path.read_bytes()
+    if damage == "truncated":  # e.g. a process killed while writing, before writes were atomic
+        path.write_bytes(content[: len(content) // 2])
+    elif damage == "garbage":
+        path.write_bytes(b"not a zip archive" * 10)
+    else:
+        with np.load(path) as cached:
+            key = cached["key"]
+        np.savez(path, values=np.full_like(first.values, np.nan), key=key)
+    with pytest.warns(UserWarning, match="corrupt w̃ cache file.*rebuilding it") as record:
+        again = solution_table(net, small, cache_dir=tmp_path, grid_points=8)
+    assert str(path) in str(record[0].message)
+    np.testing.assert_array_equal(again.values, first.values)
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # rebuilt in place, no temporary file left
+    with np.load(path) as rebuilt:
+        np.testing.assert_array_equal(rebuilt["values"], first.values)
+
+
 def projector_diagram(library, movement, capacity=200, **kwargs):
     d = Diagram()
     v = d.add("v", Playback(movement, unit="mm/s", at_end="zero"))

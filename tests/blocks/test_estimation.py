@@ -42,6 +42,38 @@ def rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
 
 
+# -- the filterpy pieces the estimator relies on (filterpy >= 1.4.5, 2.x included) -------------------
+
+
+def test_filterpy_noise_matrix_and_step_follow_the_textbook_equations():
+    """Q of a white-noise (jerk or acceleration) model, and one predict + update, written out by hand."""
+    from filterpy.kalman import KalmanFilter
+
+    dt, q, n = 0.02, 3.0, 2
+    cv = q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+    ca = q * np.array(
+        [[dt**5 / 20, dt**4 / 8, dt**3 / 6], [dt**4 / 8, dt**3 / 3, dt**2 / 2], [dt**3 / 6, dt**2 / 2, dt]]
+    )
+    np.testing.assert_allclose(Q_continuous_white_noise(2, dt, q), cv, rtol=1e-12)
+    np.testing.assert_allclose(Q_continuous_white_noise(3, dt, q), ca, rtol=1e-12)
+    # state ordered by axis (p0, v0, p1, v1), as the estimator's H = kron(I, e_0) assumes
+    Q = Q_continuous_white_noise(2, dt, q, block_size=n)
+    np.testing.assert_allclose(Q, np.kron(np.eye(n), cv), rtol=1e-12)
+
+    F = np.kron(np.eye(n), np.array([[1.0, dt], [0.0, 1.0]]))
+    H = np.kron(np.eye(n), np.eye(1, 2))
+    R = 4.0 * np.eye(n)
+    x, P, z = np.array([1.0, 2.0, -1.0, 0.5]), np.diag([5.0, 1.0, 3.0, 2.0]), np.array([1.3, -0.8])
+    kf = KalmanFilter(dim_x=2 * n, dim_z=n)
+    kf.F, kf.Q, kf.H, kf.R, kf.x, kf.P = F, Q, H, R, x.copy(), P.copy()
+    kf.predict()
+    kf.update(z)
+    x_prior, P_prior = F @ x, F @ P @ F.T + Q
+    gain = P_prior @ H.T @ np.linalg.inv(H @ P_prior @ H.T + R)
+    np.testing.assert_allclose(kf.x, x_prior + gain @ (z - H @ x_prior), rtol=1e-12)
+    np.testing.assert_allclose(kf.P, (np.eye(2 * n) - gain @ H) @ P_prior, rtol=1e-9, atol=1e-12)
+
+
 # -- clean and noisy motion ------------------------------------------------------
 
 

@@ -1,5 +1,6 @@
 """Loaders of reach-to-grasp libraries: npz, CSV and the MATLAB layout of the real data set."""
 
+import pickle
 import re
 from pathlib import Path
 
@@ -85,6 +86,19 @@ def test_npz_with_object_array(small, tmp_path):
     assert_format_error(load_npz, path, "key 'fear' is unreadable")
 
 
+def test_pickled_data_is_refused_without_suggesting_allow_pickle(small, tmp_path):
+    """numpy's own message advises ``allow_pickle=True``, which would let the file run code: never repeated."""
+    objects = write_npz(tmp_path / "objects.npz", small, fear=np.array([None] * 39, dtype=object))
+    pickled = tmp_path / "pickled.npz"
+    pickled.write_bytes(pickle.dumps({"velocity": [1.0, 2.0]}))
+    for path, fragment in ((objects, "key 'fear' is unreadable"), (pickled, "not an npz archive")):
+        with pytest.raises(DataFormatError, match=re.escape(fragment)) as info:
+            load_npz(path)
+        message = str(info.value)
+        assert str(path) in message and "pickled Python objects, which are never loaded" in message
+        assert "allow_pickle" not in message and "pickle.load" not in message
+
+
 def test_files_that_are_not_npz_archives(tmp_path):
     text = tmp_path / "notes.npz"
     text.write_text("not an archive\n")
@@ -120,6 +134,30 @@ def test_csv_accepts_shuffled_rows_reordered_and_extra_columns(small, tmp_path):
     movement_column = np.array([int(cells[r][0]) for r in shuffled])
     first_seen = movement_column[np.sort(np.unique(movement_column, return_index=True)[1])]
     assert_same_library(load_csv(path), small.subset(first_seen))
+
+
+def test_csv_with_a_byte_order_mark(small, tmp_path):
+    """Spreadsheet programs save "CSV UTF-8" with a BOM before the first column name."""
+    path = tmp_path / "excel.csv"
+    save_csv(small, path)
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    assert_same_library(load_csv(path), small)
+
+
+def test_csv_movements_with_shared_ids_in_any_order(small, tmp_path):
+    """Interleaved movements are grouped by id, each sorted by t, checked and kept in order of first row."""
+    path = tmp_path / "interleaved.csv"
+    save_csv(small, path)
+    header, *rows = path.read_text().splitlines()
+    movement = np.array([int(row.split(",")[0]) for row in rows])
+    t = np.array([int(row.split(",")[4]) for row in rows])
+    # movements interleaved sample by sample, each in reverse t order
+    order = sorted(range(len(rows)), key=lambda r: (-t[r], movement[r]))
+    path.write_text("\n".join([header] + [rows[r] for r in order]) + "\n")
+    # the first row of each movement is its last sample: longest movements first
+    expected = sorted(range(len(small)), key=lambda m: (-small.length[m], m))
+    assert len(set(small.length[expected[:5]])) > 1  # the order is not the library's
+    assert_same_library(load_csv(path), small.subset(np.array(expected)))
 
 
 def write_csv(path: Path, small: ReachLibrary, edit) -> Path:
@@ -332,3 +370,12 @@ def test_missing_and_empty_files(tmp_path, loader):
     empty = tmp_path / "empty.file"
     empty.write_bytes(b"")
     assert_format_error(loader, empty, "empty file")
+
+
+@pytest.mark.parametrize("loader", [load_npz, load_csv, load_velocity_data_mat])
+def test_a_directory_is_reported_as_a_directory(tmp_path, loader):
+    folder = tmp_path / "data.csv"
+    folder.mkdir()
+    with pytest.raises(IsADirectoryError, match="Is a directory, expected a file") as info:
+        loader(folder)
+    assert info.value.filename == str(folder)
