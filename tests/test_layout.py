@@ -41,7 +41,9 @@ ALLOWED = {
         "training",
         "catalogue",
     },
+    "cli_options": {"diagrams"},
     "cli": {
+        "cli_options",
         "sim",
         "data",
         "blocks",
