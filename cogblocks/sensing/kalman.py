@@ -127,7 +127,7 @@ class KalmanEstimator(Block):
       be rejected forever. On the ``max_rejections``-th consecutive rejection
       the filter re-initialises from the rejected measurements themselves (see
       below) and that frame is accepted.
-    * **(Re-)initialisation**: before any finite sample the outputs are NaN.
+    * **(Re-)initialisation**: before any usable sample (finite and below 1e9) the outputs are NaN.
       The filter starts at the first valid sample with the prior "position
       measured, velocity (and acceleration) zero with the spread the model
       accumulates in one second": variances ``q`` (cv velocity) or

@@ -123,7 +123,8 @@ class L1(Diagram):
     signal compensation; this architecture covers the delays and noise that
     section 3 assigns to L1 for streams that do need it. Bad data policy: that of
     :class:`~cogblocks.sensing.KalmanEstimator`; the output is NaN
-    only before the first finite sample.
+    only before the first sample the estimator can use (finite and below
+    1e9: a larger value is a corrupted one, missing like NaN).
     """
 
     def __init__(

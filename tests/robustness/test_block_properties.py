@@ -217,6 +217,22 @@ def until_finite(name):
     return lambda ins, seen: all(bad(past[name]) for past in seen)
 
 
+def until_usable(name, bound=1e9):
+    """Non-finite allowed until the input has carried a sample the Kalman filter uses: finite and below
+    ``bound`` (its corrupted-value limit: a larger finite value is missing data, like NaN)."""
+    return lambda ins, seen: all(bad(past[name]) or np.any(np.abs(past[name]) >= bound) for past in seen)
+
+
+def flags_held(name):
+    """Check: a tick whose ``name`` input is non-finite is flagged ``held`` (the phase is extrapolated)."""
+
+    def check(block, k, ins, outs, previous, seen):
+        if bad(ins[name]):
+            assert outs["held"], f"{type(block).__name__} did not flag the missing sample {ins[name]} as held"
+
+    return check
+
+
 def input_bad(*names):
     """Hold predicate: one of these inputs is non-finite."""
     return lambda block, ins, seen: any(bad(ins[n]) for n in names)
@@ -765,8 +781,9 @@ register(
     generic(kalman(), POSITION_SHAPES),
     lambda b: {"p": floats(b.test_shape, "mm", scale=150.0, offset=300.0)},
     ["p"],
-    # "before any finite sample the outputs are NaN"; missing, frozen and rejected frames are predicted
-    Policy(nonfinite={out: until_finite("p") for out in ("p_hat", "v_hat", "a_hat")}, check=check_kalman),
+    # "before any usable sample the outputs are NaN" (beyond 1e9 is missing, like NaN); missing, frozen and
+    # rejected frames are predicted
+    Policy(nonfinite={out: until_usable("p") for out in ("p_hat", "v_hat", "a_hat")}, check=check_kalman),
 )
 register(
     L1,
@@ -775,8 +792,8 @@ register(
     ),
     lambda b: {"p": floats(b.test_shape, "mm", scale=150.0, offset=300.0)},
     ["p"],
-    # "the output is NaN only before the first finite sample"
-    Policy(nonfinite={"p_avatar": until_finite("p")}),
+    # "the output is NaN only before the first sample the estimator can use (finite, below 1e9)"
+    Policy(nonfinite={"p_avatar": until_usable("p")}),
 )
 
 
@@ -822,8 +839,9 @@ register(
     st.builds(Algorithm1Phase, cutoff=st.none() | st.floats(0.5, 10.0), **ALGORITHM1),
     lambda b: {"p": floats((), "mm", scale=150.0), "raw": floats((), "mm", scale=150.0)},
     ["raw"],  # p is the filtered raw signal: couple_algorithm1 derives it
-    # "a NaN or inf raw sample is skipped: the outputs hold"; the phase is "never NaN"
-    Policy(holds={out: input_bad("raw") for out in ("theta", "amp_p", "amp_v")}),
+    # "a missing sample (NaN or inf raw) advances no state: theta is extrapolated, held is True, amplitudes
+    # hold"; the phase is "never NaN"
+    Policy(holds={out: input_bad("raw") for out in ("amp_p", "amp_v")}, check=flags_held("raw")),
     couple_algorithm1,
 )
 register(
@@ -838,7 +856,7 @@ register(
     lambda b: {"p": floats((), "mm", scale=150.0, offset=300.0)},
     ["p"],
     # Algorithm1Phase's policy
-    Policy(holds={out: input_bad("p") for out in ("theta", "amp_p", "amp_v")}),
+    Policy(holds={out: input_bad("p") for out in ("amp_p", "amp_v")}, check=flags_held("p")),
 )
 
 # -- 3D phase -----------------------------------------------------------------------------------------------
