@@ -24,7 +24,12 @@ def _mean_motion(group: SyncGroup) -> Block:
 
 def _l3_motion(group: SyncGroup, policy: Any) -> Block:
     return MotionComputer(
-        policy, n=group.n, assisted=group.assisted, gain=group.gain, omega_init=float(np.mean(group.omega))
+        policy,
+        n=group.n,
+        assisted=group.assisted,
+        gain=group.gain,
+        omega_init=float(np.mean(group.omega)),
+        adjacency=group.graph,
     )
 
 
@@ -43,7 +48,8 @@ def _lookahead_motion(group: SyncGroup) -> Block:
 #: Motion computers available by name: each builds a fresh block for a group.
 #: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --seed 0``),
 #: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
-#: the circular mean of the others' phases (no training, no model).
+#: the circular mean of the others' phases (no training, no model). Add an entry to make a policy
+#: available to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
     "lookahead": _lookahead_motion,
@@ -105,7 +111,8 @@ def pop_sync(
     Parameters
     ----------
     group : int or SyncGroup
-        Table 2's group number (1, 2, 3) or custom parameters.
+        Table 2's group number (1, 2, 3) or custom parameters, on any graph
+        (``SyncGroup.graph``: ring, all-to-all, random or a weighted matrix).
     l2 : bool
         Include the L2 architecture.
     motion : str or Block
@@ -127,7 +134,8 @@ def pop_sync(
     one_of("pop_sync", "front_end", front_end, ("lowpass", "kalman"))
     params = _group_of(group)
     d = Diagram()
-    kuramoto = d.add("group", KuramotoGroup(params.omega, params.gain, assisted=params.assisted if l2 else None))
+    assisted = params.assisted if l2 else None
+    kuramoto = d.add("group", KuramotoGroup(params.omega, params.gain, adjacency=params.graph, assisted=assisted))
     order = d.add("order", OrderParameter())
     if l2:
         if isinstance(motion, str):
