@@ -37,9 +37,12 @@ def _run_sync(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.sync import MOTIONS, plot_sync, run_sync
 
     motions = list(MOTIONS) if args.policy is None else args.policy
-    result = run_sync(args.group, motions, domain=args.domain)
+    if args.random is not None:
+        return _run_sync_heldout(args, motions)
+    group = 1 if args.group is None else args.group
+    result = run_sync(group, motions, domain=args.domain)
     if args.plot:
-        plot_sync(args.group, motions[0], args.plot)
+        plot_sync(group, motions[0], args.plot)
 
     def render(r: dict[str, Any]) -> str:
         lines = [f"Group {r['group']}: time-averaged order parameter without L2 {r['r_without']:.4f}"]
@@ -47,6 +50,32 @@ def _run_sync(args: argparse.Namespace) -> int:
             lines.append(
                 f"  with L2, {row['policy']:>10}: {row['r_with']:.4f} ({row['change_pct']:+.2f} %), "
                 f"|θ_L2 − θ_L0| mean {row['mean_dev_rad']:.3f} rad, max {row['max_dev_rad']:.3f} rad"
+            )
+        return "\n".join(lines)
+
+    _print_result(result, args.json, render)
+    return 0
+
+
+def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
+    from cogblocks.experiments.sync_heldout import heldout_table
+
+    if args.plot or args.domain != "phase":
+        raise ValueError("--random evaluates in the phase domain and draws no figure: drop --plot and --domain")
+    result = heldout_table(args.random, args.seed, motions, workers=args.workers, max_duration=args.max_duration)
+
+    def render(r: dict[str, Any]) -> str:
+        lines = [
+            f"{r['n_groups']} held-out random groups (test split, seed {r['seed']}): change of the mean order "
+            "parameter with L2",
+            f"  {'policy':>10}  lowered  mean %   p5 %  worst %  of bound  |θ_L2 − θ_L0| mean / max rad",
+        ]
+        for row in r["policies"]:
+            bound = "–" if row["mean_bound_fraction"] is None else f"{row['mean_bound_fraction']:.2f}"
+            lines.append(
+                f"  {row['policy']:>10}  {100 * row['lowered_share']:5.1f} %  {row['mean_change_pct']:+6.2f} "
+                f"{row['p5_change_pct']:+6.2f}  {row['worst_change_pct']:+7.2f}  {bound:>8}  "
+                f"{row['mean_dev_rad']:.3f} / {row['max_dev_rad']:.3f}"
             )
         return "\n".join(lines)
 
@@ -123,8 +152,24 @@ def _build_parser() -> argparse.ArgumentParser:
     targets = run.add_subparsers(dest="target", metavar="TARGET")
     run.set_defaults(handler=lambda _: run.print_help() or 2)
 
-    sync = targets.add_parser("sync", help="PoP of Social Connectedness: Table 3 for one group")
-    sync.add_argument("--group", type=int, choices=(1, 2, 3), default=1, help="Table 2's group number (default 1)")
+    sync = targets.add_parser(
+        "sync", help="PoP of Social Connectedness: Table 3 for one group, or a held-out table on random groups"
+    )
+    which = sync.add_mutually_exclusive_group()
+    which.add_argument("--group", type=int, choices=(1, 2, 3), help="Table 2's group number (default 1)")
+    which.add_argument(
+        "--random", type=_at_least_one, metavar="N", help="evaluate every policy on N random groups of the test split"
+    )
+    sync.add_argument("--seed", type=int, default=0, help="seed of the random groups (default 0)")
+    sync.add_argument(
+        "--max-duration",
+        type=float,
+        metavar="S",
+        help="with --random: cut every group to at most S simulated seconds (a quick look)",
+    )
+    sync.add_argument(
+        "--workers", type=_at_least_one, default=1, metavar="W", help="processes for --random (default 1)"
+    )
     sync.add_argument(
         "--policy", action="append", metavar="NAME", help="motion computer(s) to run (default: all); repeatable"
     )
@@ -160,6 +205,13 @@ def _build_parser() -> argparse.ArgumentParser:
     _common(demo)
     demo.set_defaults(handler=_run_demo)
     return parser
+
+
+def _at_least_one(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
 
 
 def _common(p: argparse.ArgumentParser) -> None:

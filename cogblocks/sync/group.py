@@ -54,6 +54,9 @@ class KuramotoGroup(Block):
         0-based index of the assisted participant, which adds the ``theta_l2`` input.
     theta0 : array_like
         Initial phases (0 by default, as in the deliverable).
+    sparse : bool, optional
+        Force the edge-list (True) or the dense (False) coupling; chosen from
+        the graph's size and density by default.
 
     Notes
     -----
@@ -70,6 +73,7 @@ class KuramotoGroup(Block):
         adjacency: Any = "ring",
         assisted: int | None = None,
         theta0: Any = 0.0,
+        sparse: bool | None = None,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -79,7 +83,7 @@ class KuramotoGroup(Block):
             raise ValueError(f"KuramotoGroup: omega must hold at least 2 frequencies, got {n}")
         self.n = n
         self.gain = finite_number(self, "gain", gain, low=0.0)
-        self.coupling = Coupling(checked_graph(self, adjacency, n), n)
+        self.coupling = Coupling(checked_graph(self, adjacency, n), n, sparse=sparse)
         self.adjacency = self.coupling.matrix
         if assisted is not None and (
             isinstance(assisted, bool) or not isinstance(assisted, (int, np.integer)) or not 0 <= assisted < n
