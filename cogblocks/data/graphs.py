@@ -22,7 +22,15 @@ import scipy.sparse as sp
 
 from cogblocks.sim.params import positive_int
 
-__all__ = ["adjacency_matrix", "complete_adjacency", "graph_edges", "random_adjacency", "ring_adjacency"]
+__all__ = [
+    "adjacency_matrix",
+    "complete_adjacency",
+    "graph_edges",
+    "is_random_graph",
+    "random_adjacency",
+    "random_graph_params",
+    "ring_adjacency",
+]
 
 
 def _size(n: Any, owner: str = "graph") -> int:
@@ -53,13 +61,15 @@ def random_adjacency(n: int, p: float, seed: int) -> np.ndarray:
     return (upper | upper.T).astype(float)
 
 
-def _random_spec(spec: tuple) -> tuple[float, int]:
+def random_graph_params(spec: tuple) -> tuple[float, int]:
+    """``(p, seed)`` of a ``("random", p, seed)`` spec, or ``ValueError``."""
     if len(spec) != 3 or not isinstance(spec[2], (int, np.integer)) or isinstance(spec[2], bool):
         raise ValueError(f"a random graph spec is ('random', p, seed) with an integer seed, got {spec!r}")
     return float(spec[1]), int(spec[2])
 
 
-def _is_random(spec: Any) -> bool:
+def is_random_graph(spec: Any) -> bool:
+    """Whether ``spec`` is a ``("random", p, seed)`` graph spec."""
     return isinstance(spec, tuple) and len(spec) > 0 and isinstance(spec[0], str) and spec[0] == "random"
 
 
@@ -103,8 +113,8 @@ def adjacency_matrix(spec: Any, n: int, *, sparse: bool = False) -> np.ndarray |
             dense = complete_adjacency(n)
         else:
             raise ValueError(f"graph must be 'ring', 'all', ('random', p, seed) or an {n}x{n} matrix, got {spec!r}")
-    elif _is_random(spec):
-        dense = random_adjacency(n, *_random_spec(spec))
+    elif is_random_graph(spec):
+        dense = random_adjacency(n, *random_graph_params(spec))
     elif sp.issparse(spec):
         matrix = sp.csr_matrix(spec, dtype=float)
         if matrix.shape != (n, n) or not np.isfinite(matrix.data).all():

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from scipy.sparse.csgraph import connected_components
 
-from cogblocks.data.graphs import _is_random, _random_spec, adjacency_matrix
+from cogblocks.data.graphs import adjacency_matrix, is_random_graph, random_graph_params
 
 __all__ = ["SPLITS", "SyncGroup", "TABLE2", "TABLE3_CHANGE_PCT", "locking_gain", "random_groups"]
 
@@ -60,8 +60,8 @@ class SyncGroup:
         if not 0 <= self.assisted < self.n:
             raise ValueError(f"{self.name}: assisted index {self.assisted} outside 0..{self.n - 1}")
         graph = self.graph
-        if _is_random(graph):
-            p, seed = _random_spec(graph)
+        if is_random_graph(graph):
+            p, seed = random_graph_params(graph)
             graph = ("random", p, seed)
         elif not isinstance(graph, str):
             matrix = adjacency_matrix(graph, self.n)
@@ -78,7 +78,7 @@ class SyncGroup:
     @property
     def graph_kind(self) -> str:
         """``"ring"``, ``"all"``, ``"random"`` or ``"matrix"``."""
-        return self.graph if isinstance(self.graph, str) else "random" if _is_random(self.graph) else "matrix"
+        return self.graph if isinstance(self.graph, str) else "random" if is_random_graph(self.graph) else "matrix"
 
 
 TABLE2: dict[int, SyncGroup] = {

@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from cogblocks.data.graphs import _is_random, adjacency_matrix, graph_edges
+from cogblocks.data.graphs import adjacency_matrix, graph_edges, is_random_graph
 from cogblocks.sim.params import finite_array
 
 __all__ = ["DENSE_MAX_N", "SPARSE_MAX_DENSITY", "Coupling", "checked_graph", "use_sparse"]
@@ -34,7 +34,7 @@ def checked_graph(owner: object, graph: Any, n: int) -> Any:
                 f"got {graph!r}"
             )
         return graph
-    if _is_random(graph) or sp.issparse(graph):
+    if is_random_graph(graph) or sp.issparse(graph):
         try:
             adjacency_matrix(graph, n, sparse=True)
         except ValueError as exc:
