@@ -83,6 +83,8 @@ class KuramotoGroup(Block):
             raise ValueError(f"KuramotoGroup: omega must hold at least 2 frequencies, got {n}")
         self.n = n
         self.gain = finite_number(self, "gain", gain, low=0.0)
+        if sparse is not None and not isinstance(sparse, (bool, np.bool_)):
+            raise ValueError(f"KuramotoGroup: sparse must be True, False or None, got {sparse!r}")
         self.coupling = Coupling(checked_graph(self, adjacency, n), n, sparse=sparse)
         self.adjacency = self.coupling.matrix
         if assisted is not None and (

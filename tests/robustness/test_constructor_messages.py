@@ -173,6 +173,7 @@ CASES = [
     case("KuramotoGroup", "adjacency", "full", "'ring', 'all', ('random', p, seed) or an 2x2 matrix"),
     case("KuramotoGroup", "assisted", 5, "[0, 1] or None"),
     case("KuramotoGroup", "theta0", [math.nan], "finite"),
+    case("KuramotoGroup", "sparse", "yes", "True, False or None"),
     case(
         "KuramotoGroup",
         "theta0",
