@@ -14,6 +14,7 @@ not a proof (the problem is not convex), so a policy above them is a finding, no
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import casadi as ca
@@ -226,9 +227,18 @@ def upper_bound(
     blender: BlenderParams | None = None,
     max_iter: int = 50,
 ) -> float:
-    """The larger of :func:`optimal_control_bound` (with ``max_iter``) and :func:`constant_frequency_bound`."""
+    """The best r found: the largest of :func:`optimal_control_bound` (with ``max_iter``),
+    :func:`constant_frequency_bound` and, on the group's own graph, :func:`constant_frequency_scan`.
+
+    Each is an r that some reference reaches, so the largest is the tightest; none is a proof that no
+    reference does better.
+    """
     kw = {"adjacency": adjacency, "duration": duration, "blender": blender}
-    return max(optimal_control_bound(group, max_iter=max_iter, **kw), constant_frequency_bound(group, **kw))
+    best = max(optimal_control_bound(group, max_iter=max_iter, **kw), constant_frequency_bound(group, **kw))
+    if adjacency is None:  # the scan simulates the group's own graph
+        scanned = group if duration is None else dataclasses.replace(group, duration=float(duration))
+        best = max(best, constant_frequency_scan(scanned, blender))
+    return best
 
 
 def constant_frequency_scan(
