@@ -29,6 +29,7 @@ _PREFIXES = {
 MODULES = [
     "benchmarks.engine",
     "benchmarks.sync",
+    "benchmarks.scaling",
     "benchmarks.phase3d_latency",
     "benchmarks.l1_delay",
     "benchmarks.phase1d_accuracy",

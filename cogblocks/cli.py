@@ -46,17 +46,20 @@ def _run_demo(args: argparse.Namespace) -> int:
 
 
 def _run_sync(args: argparse.Namespace) -> int:
-    from cogblocks.diagrams.sync import DEFAULT_MOTIONS, plot_sync, sync_table
+    from cogblocks.diagrams.sync import DEFAULT_MOTIONS, MOTIONS, plot_sync, sync_table
     from cogblocks.experiments.sync import save_sync_trace
 
+    if args.random is not None:  # every policy unless some are named
+        return _run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
     motions = list(DEFAULT_MOTIONS) if args.policy is None else args.policy
+    group = 1 if args.group is None else args.group
     if args.save_trace and len(motions) != 1:
         raise ValueError("--save-trace writes one run's trace: give exactly one --policy")
     if args.save_trace and (args.duration is not None or args.seed != 0):
         raise ValueError("--save-trace records the group's own run: drop --duration and --seed")
     options = {"duration": args.duration, "seed": args.seed}
     result: dict[str, Any] = {}
-    for row in sync_table(args.group, motions, args.domain, **options):
+    for row in sync_table(group, motions, args.domain, **options):
         if not result:  # the first figure: r without L2
             result = {**row, "results": []}
             line = f"Group {row['group']}: time-averaged order parameter without L2 {row['r_without']:.4f}"
@@ -71,9 +74,38 @@ def _run_sync(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result), flush=True)
     if args.save_trace:
-        save_sync_trace(args.group, motions[0], args.domain, args.save_trace)
+        save_sync_trace(group, motions[0], args.domain, args.save_trace)
         print(f"wrote {args.save_trace}", file=sys.stderr, flush=True)
-    _plot(args.plot, lambda path: plot_sync(args.group, motions[0], path, domain=args.domain, **options))
+    _plot(args.plot, lambda path: plot_sync(group, motions[0], path, domain=args.domain, **options))
+    return 0
+
+
+def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
+    from cogblocks.experiments.sync_heldout import heldout_table
+
+    if args.plot or args.domain != "phase" or args.duration is not None or args.save_trace:
+        raise ValueError(
+            "--random evaluates each group over its own duration in the phase domain and draws no figure: "
+            "drop --plot, --domain, --duration and --save-trace (--max-duration cuts long groups)"
+        )
+    result = heldout_table(args.random, args.seed, motions, workers=args.workers, max_duration=args.max_duration)
+
+    def render(r: dict[str, Any]) -> str:
+        lines = [
+            f"{r['n_groups']} held-out random groups (test split, seed {r['seed']}): change of the mean order "
+            "parameter with L2",
+            f"  {'policy':>10}  lowered  mean %   p5 %  worst %  of bound  |θ_L2 − θ_L0| mean / max rad",
+        ]
+        for row in r["policies"]:
+            bound = "–" if row["mean_bound_fraction"] is None else f"{row['mean_bound_fraction']:.2f}"
+            lines.append(
+                f"  {row['policy']:>10}  {100 * row['lowered_share']:5.1f} %  {row['mean_change_pct']:+6.2f} "
+                f"{row['p5_change_pct']:+6.2f}  {row['worst_change_pct']:+7.2f}  {bound:>8}  "
+                f"{row['mean_dev_rad']:.3f} / {row['max_dev_rad']:.3f}"
+            )
+        return "\n".join(lines)
+
+    _print_result(result, args.json, render)
     return 0
 
 
@@ -210,8 +242,21 @@ def _build_parser() -> argparse.ArgumentParser:
     targets = run.add_subparsers(dest="target", metavar="TARGET")
     run.set_defaults(handler=lambda _: run.print_help() or 2)
 
-    sync = targets.add_parser("sync", help="PoP of Social Connectedness: Table 3 for one group")
-    sync.add_argument("--group", type=int, choices=(1, 2, 3), default=1, help="Table 2's group number (default 1)")
+    sync = targets.add_parser(
+        "sync", help="PoP of Social Connectedness: Table 3 for one group, or a held-out table on random groups"
+    )
+    which = sync.add_mutually_exclusive_group()
+    which.add_argument("--group", type=int, choices=(1, 2, 3), help="Table 2's group number (default 1)")
+    which.add_argument(
+        "--random", type=COUNT, metavar="N", help="evaluate every policy on N random groups of the test split"
+    )
+    sync.add_argument(
+        "--max-duration",
+        type=STEP,
+        metavar="S",
+        help="with --random: cut every group to at most S simulated seconds (a quick look)",
+    )
+    sync.add_argument("--workers", type=COUNT, default=1, metavar="W", help="processes for --random (default 1)")
     sync.add_argument(
         "--policy",
         action="append",
@@ -232,7 +277,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "--seed",
         type=SEED,
         default=0,
-        help="seed of the arm positions' sensor noise with --domain position (default 0)",
+        help="seed of the random groups with --random, of the arm positions' sensor noise with --domain position "
+        "(default 0)",
     )
     _common(sync, trace=True)
     sync.set_defaults(handler=_run_sync)

@@ -40,6 +40,7 @@ ALLOWED = {
         "diagrams",
         "training",
         "catalogue",
+        "analysis",
     },
     "cli_options": {"diagrams"},
     "cli": {

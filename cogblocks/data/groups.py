@@ -4,18 +4,27 @@ Table 2 numbers the assisted participant from 1 (#4 in Group 1, #6 in Groups 2 a
 ``assisted`` is the 0-based index into ``omega`` (3 and 5). ``gain`` is Table 2's column ``c``
 exactly as the simulation uses it (1.6, 1.25/7 and 4.4/7): it multiplies the coupling sum and is not
 divided by N again. Group numbers follow Table 2, not Table 3 (whose rows are numbered differently).
+
+:func:`random_groups` draws held-out groups on any graph (see its docstring for the distribution).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import Any
 
-__all__ = ["SyncGroup", "TABLE2", "TABLE3_CHANGE_PCT"]
+import numpy as np
+from scipy.sparse.csgraph import connected_components
+
+from cogblocks.data.graphs import adjacency_matrix, is_random_graph, random_graph_params
+
+__all__ = ["SPLITS", "SyncGroup", "TABLE2", "TABLE3_CHANGE_PCT", "locking_gain", "random_groups"]
 
 
 @dataclass(frozen=True)
 class SyncGroup:
-    """Parameters of one simulated group (ring graph, all phases starting at 0 rad).
+    """Parameters of one simulated group (all phases starting at 0 rad).
 
     Attributes
     ----------
@@ -31,6 +40,10 @@ class SyncGroup:
         0-based index of the participant whose motion the L2 architecture alters.
     duration : float
         Simulated time in seconds.
+    graph : "ring", "all", ("random", p, seed) or matrix
+        Who sees whom (see :mod:`cogblocks.data.graphs`); a ring by default. A matrix (weighted,
+        possibly directed, zero diagonal; ``a_ij`` is how strongly i sees j) is stored as a tuple of
+        tuples so that the group stays hashable.
     """
 
     name: str
@@ -39,12 +52,33 @@ class SyncGroup:
     omega: tuple[float, ...]
     assisted: int
     duration: float
+    graph: Any = "ring"
 
     def __post_init__(self) -> None:
         if len(self.omega) != self.n:
             raise ValueError(f"{self.name}: {len(self.omega)} frequencies for n = {self.n}")
         if not 0 <= self.assisted < self.n:
             raise ValueError(f"{self.name}: assisted index {self.assisted} outside 0..{self.n - 1}")
+        graph = self.graph
+        if is_random_graph(graph):
+            p, seed = random_graph_params(graph)
+            graph = ("random", p, seed)
+        elif not isinstance(graph, str):
+            matrix = adjacency_matrix(graph, self.n)
+            if np.any(np.diag(matrix) != 0):
+                raise ValueError(f"{self.name}: the adjacency matrix must have a zero diagonal")
+            graph = tuple(tuple(float(x) for x in row) for row in matrix)
+        adjacency_matrix(graph, self.n)  # rejects unknown names and bad random specs
+        object.__setattr__(self, "graph", graph)
+
+    def adjacency(self, *, sparse: bool = False) -> Any:
+        """The group's adjacency matrix, dense (default) or CSR."""
+        return adjacency_matrix(self.graph, self.n, sparse=sparse)
+
+    @property
+    def graph_kind(self) -> str:
+        """``"ring"``, ``"all"``, ``"random"`` or ``"matrix"``."""
+        return self.graph if isinstance(self.graph, str) else "random" if is_random_graph(self.graph) else "matrix"
 
 
 TABLE2: dict[int, SyncGroup] = {
@@ -77,3 +111,97 @@ TABLE2: dict[int, SyncGroup] = {
 TABLE3_CHANGE_PCT: dict[int, float] = {1: 8.14, 2: 5.59, 3: 4.80}
 """Relative improvement (%) of the mean order parameter with L2 that the deliverable reports (Table 3),
 keyed by Table 2's group numbers."""
+
+
+def locking_gain(omega: Any, adjacency: Any) -> float:
+    """Estimate of the gain above which the group can lock, from the spread of its frequencies.
+
+    A locked group needs, for every set S of participants, the coupling across S's cut to carry
+    S's frequency excess: ``K ≥ |Σ_{i∈S}(ω_i − ω̄)| / w(cut S)`` (weights symmetrised). The
+    estimate is the largest such bound over the single participants and the sets of the k fastest
+    (k = 1 … N − 1): a necessary condition, exact for two participants (``|ω_1 − ω_2| / 2``).
+    Infinite for a graph that is not connected.
+    """
+    omega = np.asarray(omega, dtype=float)
+    a = np.asarray(adjacency, dtype=float)
+    a = (np.abs(a) + np.abs(a.T)) / 2.0
+    excess = omega - omega.mean()
+    n = len(omega)
+    order = np.argsort(-excess)
+    sets = [np.array([i]) for i in range(n)] + [order[:k] for k in range(1, n)]
+    bound = 0.0
+    for members in sets:
+        inside = np.zeros(n, dtype=bool)
+        inside[members] = True
+        cut = a[inside][:, ~inside].sum()
+        need = abs(excess[inside].sum())
+        bound = max(bound, need / cut if cut > 0 else (math.inf if need > 0 else 0.0))
+    return bound
+
+
+#: Spawn keys of the generator's splits: a split's groups come from its own seed streams.
+SPLITS: dict[str, int] = {"train": 0, "validation": 1, "test": 2}
+
+
+def _random_group(rng: np.random.Generator, name: str) -> SyncGroup:
+    n = int(rng.integers(3, 16))
+    kind = ("ring", "all", "random")[int(rng.integers(3))]
+    centre = rng.uniform(2.0, 7.0)
+    spread = math.exp(rng.uniform(math.log(0.1), math.log(2.0)))
+    omega = centre + spread * rng.standard_normal(n)
+    graph: Any = kind
+    if kind == "random":
+        p = float(rng.uniform(0.2, 0.8))
+        while True:  # redraw until connected: a split group has no locking gain to scale by
+            graph = ("random", p, int(rng.integers(2**31)))
+            if connected_components(adjacency_matrix(graph, n, sparse=True), directed=False)[0] == 1:
+                break
+    ratio = math.exp(rng.uniform(math.log(0.1), math.log(10.0)))
+    gain = ratio * locking_gain(omega, adjacency_matrix(graph, n))
+    duration = round(math.exp(rng.uniform(math.log(10.0), math.log(300.0))), 1)
+    assisted = int(rng.integers(n))
+    return SyncGroup(
+        name=f"{name} ({kind}, K/K_c = {ratio:.2f})",
+        n=n,
+        gain=float(gain),
+        omega=tuple(float(w) for w in omega),
+        assisted=assisted,
+        duration=duration,
+        graph=graph,
+    )
+
+
+def random_groups(n: int, split: str = "train", seed: int = 0) -> list[SyncGroup]:
+    """``n`` seeded random groups of one split, for training and held-out evaluation.
+
+    Group ``i`` of a split is drawn from ``SeedSequence(seed, spawn_key=(SPLITS[split], i))``, so
+    the splits never share a stream, and the first groups do not depend on ``n``. Distribution:
+
+    * size N uniform in 3 … 15;
+    * graph ring, all-to-all or random G(N, p) (p uniform in [0.2, 0.8], redrawn until
+      connected), one third each;
+    * ω_i = ω_c + σ z_i, z_i standard normal, ω_c uniform in [2, 7] rad/s, σ log-uniform in
+      [0.1, 2] rad/s;
+    * gain K = ρ K_c with K_c = :func:`locking_gain` of the frequencies on the graph and ρ
+      log-uniform in [0.1, 10] (from far below to far above locking);
+    * duration log-uniform in [10, 300] s (rounded to 0.1 s);
+    * assisted participant uniform.
+
+    Parameters
+    ----------
+    n : int
+        Number of groups, >= 0.
+    split : {"train", "validation", "test"}
+        Which split.
+    seed : int
+        Seed of the whole collection.
+    """
+    if split not in SPLITS:
+        raise ValueError(f"random_groups: split must be one of {sorted(SPLITS)}, got {split!r}")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+        raise ValueError(f"random_groups: n must be an integer >= 0, got {n!r}")
+    groups = []
+    for i in range(int(n)):
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(SPLITS[split], i)))
+        groups.append(_random_group(rng, f"{split} group {i} (seed {seed})"))
+    return groups

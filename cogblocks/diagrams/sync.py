@@ -29,7 +29,12 @@ def _mean_motion(group: SyncGroup) -> Block:
 
 def _l3_motion(group: SyncGroup, policy: Any) -> Block:
     return MotionComputer(
-        policy, n=group.n, assisted=group.assisted, gain=group.gain, omega_init=float(np.mean(group.omega))
+        policy,
+        n=group.n,
+        assisted=group.assisted,
+        gain=group.gain,
+        omega_init=float(np.mean(group.omega)),
+        adjacency=group.graph,
     )
 
 
@@ -55,7 +60,8 @@ def _mpc_motion(group: SyncGroup) -> Block:
 #: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --seed 0``),
 #: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
 #: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 3 s
-#: every 0.5 s with casadi on a model it identifies online.
+#: every 0.5 s with casadi on a model it identifies online. Add an entry to make a policy available to
+#: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
     "lookahead": _lookahead_motion,
@@ -122,7 +128,8 @@ def pop_sync(
     Parameters
     ----------
     group : int or SyncGroup
-        Table 2's group number (1, 2, 3) or custom parameters.
+        Table 2's group number (1, 2, 3) or custom parameters, on any graph
+        (``SyncGroup.graph``: ring, all-to-all, random or a weighted matrix).
     l2 : bool
         Include the L2 architecture.
     motion : str or Block
@@ -144,7 +151,8 @@ def pop_sync(
     one_of("pop_sync", "front_end", front_end, ("lowpass", "kalman"))
     params = _group_of(group)
     d = Diagram()
-    kuramoto = d.add("group", KuramotoGroup(params.omega, params.gain, assisted=params.assisted if l2 else None))
+    assisted = params.assisted if l2 else None
+    kuramoto = d.add("group", KuramotoGroup(params.omega, params.gain, adjacency=params.graph, assisted=assisted))
     order = d.add("order", OrderParameter())
     if l2:
         if isinstance(motion, str):

@@ -1,1 +1,1 @@
-"""Experiments at scale: parameter sweeps on joblib or Dask, diagrams and traces as files."""
+"""Experiments at scale: parameter sweeps on joblib or Dask, diagrams and traces as files, held-out evaluations."""

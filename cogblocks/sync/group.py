@@ -9,21 +9,14 @@ import numpy as np
 
 from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.blocks.specs import PHASE
+from cogblocks.data.graphs import ring_adjacency
 from cogblocks.sim import Block
 from cogblocks.sim.params import finite_array, finite_number, positive_int
+from cogblocks.sync.coupling import Coupling, checked_graph
 
 __all__ = ["KuramotoGroup", "KuramotoOscillator", "ring_adjacency"]
 
 _BELOW_TWO_PI = np.nextafter(TWO_PI, 0.0)
-
-
-def ring_adjacency(n: int) -> np.ndarray:
-    """Adjacency matrix of a ring of ``n`` participants (each sees its two neighbours)."""
-    n = positive_int("ring_adjacency", "n", n, minimum=2)
-    a = np.zeros((n, n))
-    for i in range(n):
-        a[i, (i + 1) % n] = a[i, (i - 1) % n] = 1.0
-    return a
 
 
 class KuramotoGroup(Block):
@@ -51,12 +44,19 @@ class KuramotoGroup(Block):
         Natural frequencies in rad/s, one per participant.
     gain : float
         Coupling gain, >= 0.
-    adjacency : "ring" or array_like
-        Who sees whom: ``a_ij = 1`` when i is coupled to j. A ring by default.
+    adjacency : "ring", "all", ("random", p, seed), array_like or scipy.sparse matrix
+        Who sees whom: ``a_ij`` is the weight with which i sees j (weighted,
+        possibly directed; see :mod:`cogblocks.data.graphs`). A ring by default.
+        The coupling is computed on the edge list, in O(edges), for groups
+        larger than 64 with at most a quarter of the N² entries linked
+        (:func:`~cogblocks.sync.coupling.use_sparse`), else as a dense product.
     assisted : int, optional
         0-based index of the assisted participant, which adds the ``theta_l2`` input.
     theta0 : array_like
         Initial phases (0 by default, as in the deliverable).
+    sparse : bool, optional
+        Force the edge-list (True) or the dense (False) coupling; chosen from
+        the graph's size and density by default.
 
     Notes
     -----
@@ -73,6 +73,7 @@ class KuramotoGroup(Block):
         adjacency: Any = "ring",
         assisted: int | None = None,
         theta0: Any = 0.0,
+        sparse: bool | None = None,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -82,11 +83,10 @@ class KuramotoGroup(Block):
             raise ValueError(f"KuramotoGroup: omega must hold at least 2 frequencies, got {n}")
         self.n = n
         self.gain = finite_number(self, "gain", gain, low=0.0)
-        if isinstance(adjacency, str):
-            if adjacency != "ring":
-                raise ValueError(f"KuramotoGroup: adjacency must be 'ring' or an {n}x{n} matrix, got {adjacency!r}")
-            adjacency = ring_adjacency(n)
-        self.adjacency = finite_array(self, "adjacency", adjacency, shape=(n, n))
+        if sparse is not None and not isinstance(sparse, (bool, np.bool_)):
+            raise ValueError(f"KuramotoGroup: sparse must be True, False or None, got {sparse!r}")
+        self.coupling = Coupling(checked_graph(self, adjacency, n), n, sparse=sparse)
+        self.adjacency = self.coupling.matrix
         if assisted is not None and (
             isinstance(assisted, bool) or not isinstance(assisted, (int, np.integer)) or not 0 <= assisted < n
         ):
@@ -104,7 +104,6 @@ class KuramotoGroup(Block):
         self.add_output("theta", PHASE.with_(shape=(n,)), initial=np.mod(theta0, TWO_PI))
         self.add_state("phase", np.mod(theta0, TWO_PI).astype(float))
         self._seen = np.zeros(n)
-        self._diff = np.zeros((n, n))
         self._rate = np.zeros(n)
 
     def output(self, k: int) -> None:
@@ -120,11 +119,7 @@ class KuramotoGroup(Block):
         omega = self.omega.value
         if self.omega.driven and not np.isfinite(omega).all():  # the default is finite by construction
             omega = np.where(np.isfinite(omega), omega, self.omega0)
-        d = self._diff
-        np.subtract(seen[None, :], seen[:, None], out=d)
-        np.sin(d, out=d)
-        d *= self.adjacency
-        rate = np.add.reduce(d, axis=1, out=self._rate)
+        rate = self.coupling.pull(seen, self._rate)
         rate *= self.gain
         rate += omega
         rate *= self.dt

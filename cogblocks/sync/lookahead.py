@@ -44,7 +44,7 @@ class LookaheadPolicy:
     def for_group(
         cls, group: SyncGroup, *, blender: BlenderParams | None = None, horizon: int = 25, replan_every: int = 1
     ) -> LookaheadPolicy:
-        """Look-ahead with an exact model of a bundled group and the given blender."""
+        """Look-ahead with an exact model of a group (on its graph) and the given blender."""
         return cls(SyncModel.from_group(group, blender=blender), horizon, replan_every)
 
     def reset(self, omega_init: float) -> None:

@@ -23,8 +23,8 @@ import numpy as np
 from cogblocks.blocks.angles import wrap_angle
 from cogblocks.blocks.specs import PHASE
 from cogblocks.sim import Block, Signal
-from cogblocks.sim.params import finite_array, finite_number, positive_int
-from cogblocks.sync.group import ring_adjacency
+from cogblocks.sim.params import finite_number, positive_int
+from cogblocks.sync.coupling import Coupling, checked_graph
 
 __all__ = [
     "ACTIONS",
@@ -175,8 +175,9 @@ class MotionComputer(_MotionPorts):
         Coupling gain of the virtual oscillator (the group's).
     omega_init : float
         ``ω_L3[−1]``; the deliverable's choice is the mean natural frequency.
-    adjacency : "ring" or array_like
-        The group's graph; row ``assisted`` couples the oscillator.
+    adjacency : graph spec
+        The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a
+        weighted, possibly directed matrix); row ``assisted`` couples the oscillator.
 
     Notes
     -----
@@ -204,8 +205,7 @@ class MotionComputer(_MotionPorts):
         self.policy = policy
         self.gain = finite_number(self, "gain", gain, low=0.0)
         self.omega_init = finite_number(self, "omega_init", omega_init, low=-OMEGA_L3_LIMIT, high=OMEGA_L3_LIMIT)
-        adjacency = ring_adjacency(n) if isinstance(adjacency, str) and adjacency == "ring" else adjacency
-        self.coupling = finite_array(self, "adjacency", adjacency, shape=(n, n))[assisted]
+        self.coupling = Coupling(checked_graph(self, adjacency, n), n).row(assisted)
         self.others = np.array([j for j in range(n) if j != assisted])
         self.add_state("theta_l3", 0.0)
         self.add_state("omega_prev", self.omega_init)

@@ -77,7 +77,7 @@ class SyncEnv:
         blender: BlenderParams | None = None,
         dt: float = DT,
     ) -> SyncEnv:
-        """``batch_size`` identical episodes of a bundled group over its whole duration."""
+        """``batch_size`` identical episodes of a group (on its graph) over its whole duration."""
         model = SyncModel.from_group(group, l2=l2, blender=blender, dt=dt)
         batched = SyncModel(
             np.tile(model.omega, (batch_size, 1)), model.gain, model.adjacency, model.assisted, model.dt, model.blender

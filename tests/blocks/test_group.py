@@ -112,7 +112,10 @@ def test_order_parameter_ignores_non_finite_phases():
         (dict(omega=[1.0, np.inf], gain=1.0), "omega must contain only finite numbers"),
         (dict(omega=[1.0, 2.0], gain=-1.0), r"gain must be a finite number in \[0.0, inf\), got -1.0"),
         (dict(omega=[1.0, 2.0], gain=1.0, adjacency=np.ones((3, 3))), r"adjacency must have shape \(2, 2\)"),
-        (dict(omega=[1.0, 2.0], gain=1.0, adjacency="star"), "adjacency must be 'ring' or an 2x2 matrix"),
+        (
+            dict(omega=[1.0, 2.0], gain=1.0, adjacency="star"),
+            r"adjacency must be 'ring', 'all', \('random', p, seed\) or an 2x2 matrix, got 'star'",
+        ),
         (dict(omega=[1.0, 2.0], gain=1.0, assisted=2), r"assisted must be a 0-based index in \[0, 1\] or None, got 2"),
     ],
 )

@@ -185,9 +185,10 @@ CASES = [
     # Social Connectedness
     case("KuramotoGroup", "omega", [1.0, math.nan], "finite"),
     case("KuramotoGroup", "gain", -1.0, "[0.0, inf)"),
-    case("KuramotoGroup", "adjacency", "full", "'ring' or an 2x2 matrix"),
+    case("KuramotoGroup", "adjacency", "full", "'ring', 'all', ('random', p, seed) or an 2x2 matrix"),
     case("KuramotoGroup", "assisted", 5, "[0, 1] or None"),
     case("KuramotoGroup", "theta0", [math.nan], "finite"),
+    case("KuramotoGroup", "sparse", "yes", "True, False or None"),
     case(
         "KuramotoGroup",
         "theta0",

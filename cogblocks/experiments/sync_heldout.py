@@ -1,0 +1,134 @@
+"""Held-out evaluation of the L3 policies of the PoP of Social Connectedness on random groups.
+
+Every policy of :data:`cogblocks.diagrams.sync.MOTIONS` runs, in the closed-loop diagram of
+:func:`~cogblocks.diagrams.sync.pop_sync`, on the first groups of the *test* split of
+:func:`~cogblocks.data.groups.random_groups`; each group is compared with itself without L2 and
+with :func:`~cogblocks.analysis.sync_bound.constant_frequency_scan` (the cheap bound; see
+:func:`~cogblocks.analysis.sync_bound.upper_bound`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from cogblocks.analysis.sync_bound import constant_frequency_scan
+from cogblocks.data.groups import SyncGroup, random_groups
+from cogblocks.diagrams.sync import MOTIONS, run_sync
+from cogblocks.sync.model import BlenderParams
+
+__all__ = ["evaluate_group", "heldout_table", "summarise"]
+
+#: Below this headroom (bound minus r without L2; r is in [0, 1]) a group's fraction of the bound is left
+#: out of the mean: a tiny denominator would let one group dominate it.
+MIN_HEADROOM = 1e-3
+
+
+def evaluate_group(group: SyncGroup, policies: list[str]) -> dict[str, Any]:
+    """One group: r without L2, the bound, and per policy r with L2, the change and the deviations.
+
+    Returns
+    -------
+    dict
+        ``{"name", "n", "graph", "r_without", "r_bound", "results": [...]}`` where ``results`` are
+        :func:`run_sync`'s rows plus ``bound_fraction = (r_with − r_without) / (r_bound − r_without)``
+        (``None`` without headroom).
+    """
+    result = run_sync(group, policies)
+    r_without = result["r_without"]
+    r_bound = constant_frequency_scan(group, BlenderParams())
+    headroom = r_bound - r_without
+    for row in result["results"]:
+        row["bound_fraction"] = (row["r_with"] - r_without) / headroom if headroom > MIN_HEADROOM else None
+    return {
+        "name": group.name,
+        "n": group.n,
+        "graph": group.graph_kind,
+        "r_without": r_without,
+        "r_bound": r_bound,
+        "results": result["results"],
+    }
+
+
+def summarise(rows: list[dict[str, Any]], policies: list[str]) -> list[dict[str, Any]]:
+    """Per policy: share of groups lowered, mean / 5th percentile / worst change (%), bound fraction, deviations."""
+    summary = []
+    for policy in policies:
+        results = [next(r for r in row["results"] if r["policy"] == policy) for row in rows]
+        change = np.array([r["change_pct"] for r in results])
+        fractions = [r["bound_fraction"] for r in results if r["bound_fraction"] is not None]
+        summary.append(
+            {
+                "policy": policy,
+                "lowered_share": float(np.mean(change < 0.0)),
+                "mean_change_pct": float(change.mean()),
+                "p5_change_pct": float(np.percentile(change, 5)),
+                "worst_change_pct": float(change.min()),
+                "mean_bound_fraction": float(np.mean(fractions)) if fractions else None,
+                "mean_dev_rad": float(np.mean([r["mean_dev_rad"] for r in results])),
+                "max_dev_rad": float(np.max([r["max_dev_rad"] for r in results])),
+            }
+        )
+    return summary
+
+
+def heldout_table(
+    n_groups: int,
+    seed: int = 0,
+    policies: list[str] | None = None,
+    *,
+    workers: int = 1,
+    details: bool = False,
+    groups: list[SyncGroup] | None = None,
+    max_duration: float | None = None,
+) -> dict[str, Any]:
+    """Evaluate ``policies`` (all of :data:`MOTIONS` by default) on ``n_groups`` test groups of ``seed``.
+
+    Parameters
+    ----------
+    n_groups : int
+        How many groups of the test split, >= 1.
+    seed : int
+        Seed of :func:`random_groups`.
+    policies : list of str, optional
+        Names from :data:`MOTIONS`.
+    workers : int
+        Processes running groups in parallel (joblib's loky backend); 1 runs them here.
+    details : bool
+        Also return every group's row under ``"groups"``.
+    groups : list of SyncGroup, optional
+        Evaluate these instead of the test split (``seed`` is then only reported).
+    max_duration : float, optional
+        Cut every group's duration to at most this many seconds (a quick look; not the held-out table).
+
+    Returns
+    -------
+    dict
+        ``{"n_groups", "seed", "policies": [summary per policy]}`` (see :func:`summarise`).
+    """
+    policies = list(MOTIONS) if policies is None else list(policies)
+    unknown = sorted(set(policies) - set(MOTIONS))
+    if unknown:
+        raise ValueError(f"unknown policy {unknown[0]!r}: choose from {sorted(MOTIONS)}")
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
+    if groups is None:
+        if n_groups < 1:
+            raise ValueError(f"the number of random groups must be at least 1, got {n_groups}")
+        groups = random_groups(n_groups, "test", seed)
+    if max_duration is not None:
+        if not max_duration > 0:
+            raise ValueError(f"max_duration must be positive, got {max_duration}")
+        groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
+    if workers == 1:
+        rows = [evaluate_group(group, policies) for group in groups]
+    else:
+        from joblib import Parallel, delayed
+
+        rows = Parallel(n_jobs=workers, backend="loky")(delayed(evaluate_group)(g, policies) for g in groups)
+    table: dict[str, Any] = {"n_groups": len(groups), "seed": seed, "policies": summarise(rows, policies)}
+    if details:
+        table["groups"] = rows
+    return table

@@ -1,0 +1,138 @@
+"""The random-group generator, the constant-frequency bound and the held-out evaluation (API and CLI)."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from scipy.sparse.csgraph import connected_components
+
+from cogblocks.analysis.sync_bound import constant_frequency_scan, upper_bound
+from cogblocks.cli import main
+from cogblocks.data.groups import SyncGroup, locking_gain, random_groups
+from cogblocks.diagrams.sync import run_sync
+from cogblocks.experiments.sync_heldout import heldout_table
+from cogblocks.sync import SyncModel
+from cogblocks.sync.model import order_parameter
+
+KEYS = {
+    "policy",
+    "lowered_share",
+    "mean_change_pct",
+    "p5_change_pct",
+    "worst_change_pct",
+    "mean_bound_fraction",
+    "mean_dev_rad",
+    "max_dev_rad",
+}
+
+
+def test_generator_is_reproducible_and_prefix_stable():
+    assert random_groups(6, "validation", 3) == random_groups(6, "validation", 3)
+    assert random_groups(3, "validation", 3) == random_groups(6, "validation", 3)[:3]
+    assert random_groups(3, "validation", 3) != random_groups(3, "validation", 4)
+    assert random_groups(0, "test") == []
+
+
+def test_splits_are_disjoint():
+    splits = {s: random_groups(60, s, 0) for s in ("train", "validation", "test")}
+    frequencies = {s: {g.omega for g in groups} for s, groups in splits.items()}
+    assert all(len(f) == 60 for f in frequencies.values())
+    assert not frequencies["train"] & frequencies["validation"]
+    assert not frequencies["train"] & frequencies["test"]
+    assert not frequencies["validation"] & frequencies["test"]
+
+
+def test_generator_covers_the_documented_distribution():
+    groups = random_groups(90, "train", 1)
+    assert (
+        {g.n for g in groups} <= set(range(3, 16)) and min(g.n for g in groups) <= 4 and max(g.n for g in groups) >= 14
+    )
+    assert {g.graph_kind for g in groups} == {"ring", "all", "random"}
+    ratios = np.array([g.gain / locking_gain(g.omega, g.adjacency()) for g in groups])
+    assert ratios.min() >= 0.1 - 1e-12 and ratios.max() <= 10 + 1e-12
+    assert np.mean(ratios < 1) > 0.3 and np.mean(ratios > 1) > 0.3  # below and above locking
+    durations = np.array([g.duration for g in groups])
+    assert durations.min() >= 10 and durations.max() <= 300
+    assert all(connected_components(g.adjacency(), directed=False)[0] == 1 for g in groups)
+    assert len({g.assisted for g in groups}) > 8
+    with pytest.raises(ValueError, match="split must be one of"):
+        random_groups(2, "dev")
+
+
+def test_locking_gain():
+    assert locking_gain([1.0, 3.0], [[0, 1], [1, 0]]) == 1.0  # |ω1 − ω2| / 2
+    # three in a line 0-1-2: the fastest must be carried by its single edge
+    line = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]])
+    assert locking_gain([3.0, 0.0, 0.0], line) == 2.0
+    assert locking_gain([1.0, 2.0, 3.0], np.zeros((3, 3))) == np.inf
+
+
+def test_two_oscillators_lock_just_above_the_locking_gain():
+    omega = np.array([1.0, 3.0])
+    for factor, locks in ((1.05, True), (0.95, False)):
+        group = SyncGroup("pair", 2, factor * locking_gain(omega, [[0, 1], [1, 0]]), tuple(omega), 0, 60.0)
+        model = SyncModel.from_group(group, l2=False)
+        theta = np.zeros(2)
+        unwrapped = 0.0
+        for _ in range(6000):
+            new, _ = model.advance(theta, theta, np.zeros(()), np.zeros(()))
+            unwrapped += np.angle(np.exp(1j * ((new[1] - new[0]) - (theta[1] - theta[0]))))
+            theta = new
+        assert (abs(unwrapped) < np.pi) == locks
+
+
+def test_constant_frequency_scan_matches_the_model():
+    group = random_groups(1, "test", 2)[0]
+    group = dataclasses.replace(group, duration=1.5)
+    got = constant_frequency_scan(group, n_frequencies=3, n_phases=2)
+    # independent: each reference on its own, through SyncModel.blend / advance
+    model = SyncModel.from_group(group)
+    omega = np.asarray(group.omega)
+    best = 0.0
+    for w in np.linspace(omega.min() - 0.5, omega.max() + 0.5, 3):
+        for phase0 in (0.0, np.pi):
+            theta, lam, total = np.zeros(group.n), np.asarray(model.blender.lambda_max), 0.0
+            for k in range(151):
+                ref = np.mod(phase0 + w * k * 0.01, 2 * np.pi)
+                tilde, _, lam = model.blend(theta, np.asarray(ref), lam)
+                total += order_parameter(tilde)
+                theta, _ = model.advance(theta, tilde, np.asarray(ref), np.asarray(w))
+            best = max(best, total / 151)
+    assert got == pytest.approx(best, abs=1e-9)
+    assert upper_bound(group, max_iter=5) >= got
+
+
+def tiny_groups():
+    return [dataclasses.replace(g, duration=1.0) for g in random_groups(2, "test", 0)]
+
+
+def test_heldout_table_summarises_each_group():
+    groups = tiny_groups()
+    table = heldout_table(2, groups=groups, policies=["mean"], details=True)
+    assert table["n_groups"] == 2 and table["seed"] == 0
+    (row,) = table["policies"]
+    assert set(row) == KEYS
+    changes = [run_sync(g, ["mean"])["results"][0]["change_pct"] for g in groups]
+    assert row["mean_change_pct"] == pytest.approx(np.mean(changes))
+    assert row["worst_change_pct"] == pytest.approx(min(changes))
+    assert row["lowered_share"] == np.mean(np.array(changes) < 0)
+    for detail in table["groups"]:
+        fraction = detail["results"][0]["bound_fraction"]
+        gain = detail["results"][0]["r_with"] - detail["r_without"]
+        assert fraction is None or fraction == pytest.approx(gain / (detail["r_bound"] - detail["r_without"]))
+    with pytest.raises(ValueError, match="unknown policy 'best'"):
+        heldout_table(2, policies=["best"])
+
+
+def test_cli_random_json(capsys):
+    assert main(["run", "sync", "--random", "2", "--max-duration", "1", "--policy", "mean", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n_groups"] == 2 and out["seed"] == 0
+    assert [p["policy"] for p in out["policies"]] == ["mean"] and set(out["policies"][0]) == KEYS
+    assert main(["run", "sync", "--random", "2", "--max-duration", "1", "--policy", "mean"]) == 0
+    assert "2 held-out random groups (test split, seed 0)" in capsys.readouterr().out
+    assert main(["run", "sync", "--random", "2", "--group", "1"]) == 2
+    assert "--group: not allowed with argument --random" in capsys.readouterr().err
+    assert main(["run", "sync", "--random", "0"]) == 2
+    assert "--random" in capsys.readouterr().err
