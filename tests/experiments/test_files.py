@@ -43,7 +43,12 @@ def test_the_file_is_plain_data(tmp_path):
     group = data["root"]["diagram"]["blocks"]["group"]
     assert group == {
         "type": "KuramotoGroup",
-        "params": {"omega": {"tuple": list(TABLE2[3].omega)}, "gain": TABLE2[3].gain, "assisted": 5},
+        "params": {
+            "omega": {"tuple": list(TABLE2[3].omega)},
+            "gain": TABLE2[3].gain,
+            "adjacency": "ring",  # the group's graph, as pop_sync passes it
+            "assisted": 5,
+        },
     }
     assert ["l2.theta_l2", "group.theta_l2"] in data["root"]["diagram"]["wires"]
     assert not (tmp_path / "sync.data").exists()  # nothing beside it: no data objects
