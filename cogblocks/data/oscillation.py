@@ -56,15 +56,15 @@ class Oscillation:
     dt: float
 
 
-def _range(name: str, value: Any, low: float, high: float | None = None) -> tuple[float, float]:
-    """Validate a ``(lo, hi)`` pair with ``low < lo <= hi`` (and ``hi <= high`` if given)."""
+def _range(owner: str, name: str, value: Any, low: float, high: float | None = None) -> tuple[float, float]:
+    """Validate a ``(lo, hi)`` pair with ``low < lo <= hi`` (and ``hi <= high`` if given); errors name ``owner``."""
     allowed = f"a pair (lo, hi) with {low} < lo <= hi" + (f" <= {high}" if high is not None else "")
     try:
         lo, hi = (float(v) for v in value)
     except (TypeError, ValueError):
-        raise ValueError(f"{_OWNER}: {name} must be {allowed}, got {value!r}") from None
+        raise ValueError(f"{owner}: {name} must be {allowed}, got {value!r}") from None
     if not (np.isfinite(lo) and np.isfinite(hi) and low < lo <= hi and (high is None or hi <= high)):
-        raise ValueError(f"{_OWNER}: {name} must be {allowed}, got {value!r}")
+        raise ValueError(f"{owner}: {name} must be {allowed}, got {value!r}")
     return lo, hi
 
 
@@ -151,15 +151,15 @@ def generate_oscillation(
     n = int(round(duration / dt))
     if n < 2:
         raise ValueError(f"{_OWNER}: duration must hold at least two samples of dt={dt}, got {duration!r}")
-    f_lo, f_hi = _range("freq_range", freq_range, 0.0, 0.5 / dt)
-    a_lo, a_hi = _range("amplitude_range", amplitude_range, 0.0)
+    f_lo, f_hi = _range(_OWNER, "freq_range", freq_range, 0.0, 0.5 / dt)
+    a_lo, a_hi = _range(_OWNER, "amplitude_range", amplitude_range, 0.0)
     freq_drift = finite_number(_OWNER, "freq_drift", freq_drift, low=0.0)
     amplitude_drift = finite_number(_OWNER, "amplitude_drift", amplitude_drift, low=0.0)
     offset_drift = finite_number(_OWNER, "offset_drift", offset_drift, low=0.0)
     harmonics = finite_number(_OWNER, "harmonics", harmonics, low=0.0, high=0.3)
     noise_std = finite_number(_OWNER, "noise_std", noise_std, low=0.0)
     dropout_rate = finite_number(_OWNER, "dropout_rate", dropout_rate, low=0.0)
-    d_lo, d_hi = _range("dropout_duration", dropout_duration, 0.0)
+    d_lo, d_hi = _range(_OWNER, "dropout_duration", dropout_duration, 0.0)
     nan_rate = finite_number(_OWNER, "nan_rate", nan_rate, low=0.0, high=1.0, high_open=True)
     rng = np.random.default_rng(seed)
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.interpolate
 
-from cogblocks.data.oscillation import _ou
+from cogblocks.data.oscillation import _ou, _range
 from cogblocks.sim.params import finite_number
 
 __all__ = ["SensorRecording", "simulate_sensor"]
@@ -69,18 +69,6 @@ class SensorRecording:
     def bad(self) -> np.ndarray:
         """True where the sample is not a measurement of the movement (missing, frozen or spike)."""
         return self.missing | self.frozen | self.spike
-
-
-def _pair(name: str, value: object, high: float) -> tuple[float, float]:
-    """Validate a ``(lo, hi)`` pair with ``0 < lo <= hi <= high``."""
-    allowed = f"a pair (lo, hi) with 0 < lo <= hi <= {high:g}"
-    try:
-        lo, hi = (float(v) for v in value)  # type: ignore[union-attr]
-    except (TypeError, ValueError):
-        raise ValueError(f"{_OWNER}: {name} must be {allowed}, got {value!r}") from None
-    if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi <= high):
-        raise ValueError(f"{_OWNER}: {name} must be {allowed}, got {value!r}")
-    return lo, hi
 
 
 def simulate_sensor(
@@ -168,7 +156,7 @@ def simulate_sensor(
     if n < 16:
         raise ValueError(f"{_OWNER}: duration must hold at least 16 samples at {rate_hz} Hz, got {duration!r}")
     scale = finite_number(_OWNER, "scale", scale, low=0.0, low_open=True)
-    f_lo, f_hi = _pair("freq_range", freq_range, 0.25 * rate_hz)
+    f_lo, f_hi = _range(_OWNER, "freq_range", freq_range, 0.0, 0.25 * rate_hz)
     freq_drift = finite_number(_OWNER, "freq_drift", freq_drift, low=0.0)
     cycle_wobble = finite_number(_OWNER, "cycle_wobble", cycle_wobble, low=0.0, high=0.5)
     amplitude_drift = finite_number(_OWNER, "amplitude_drift", amplitude_drift, low=0.0)
@@ -177,7 +165,7 @@ def simulate_sensor(
     quantisation = finite_number(_OWNER, "quantisation", quantisation, low=0.0)
     jitter = finite_number(_OWNER, "jitter", jitter, low=0.0, high=0.3)
     dropout_rate = finite_number(_OWNER, "dropout_rate", dropout_rate, low=0.0)
-    d_lo, d_hi = _pair("dropout_duration", dropout_duration, np.inf)
+    d_lo, d_hi = _range(_OWNER, "dropout_duration", dropout_duration, 0.0)
     nan_share = finite_number(_OWNER, "nan_share", nan_share, low=0.0, high=1.0)
     spike_rate = finite_number(_OWNER, "spike_rate", spike_rate, low=0.0)
     rng = np.random.default_rng(seed)
