@@ -70,6 +70,7 @@ LONG_MODULES = {
     "cogblocks.amplification.optimal": "the OptimalBlender block (its solver lives in encoder_casadi)",
     "cogblocks.data.loaders": "the loaders of the three formats share their checks and error messages",
     "cogblocks.data.reach": "the seeded synthetic reach-to-grasp library and its container",
+    "cogblocks.phase.algorithm1": "Algorithm 1's tick: its events, drop-out rules and gap filling share one state",
 }
 
 

@@ -164,22 +164,33 @@ class LowPass(Block):
     init : {"first", "zero"}
         ``"first"`` starts the filter in steady state at the first finite sample
         (no start-up transient); ``"zero"`` starts from rest.
+    gaps : {"hold", "repeat"}
+        What a non-finite sample does (see below).
 
     Notes
     -----
-    Bad data policy: a sample with NaN or inf is skipped; the output holds its
-    last value and the filter state does not advance.
+    Bad data policy: with ``gaps="hold"`` (the default) a sample with NaN or inf
+    is skipped: the output holds its last value and the filter state does not
+    advance. With ``gaps="repeat"`` the filter runs on, fed with the last finite
+    value of each element (so a gap filters exactly like a frozen sensor, which a
+    block downstream can correct for, see ``Algorithm1Phase``); before any finite
+    sample it holds.
     """
 
-    def __init__(self, cutoff: float, order: int = 2, *, init: str = "first", period: float | None = None) -> None:
+    def __init__(
+        self, cutoff: float, order: int = 2, *, init: str = "first", gaps: str = "hold", period: float | None = None
+    ) -> None:
         super().__init__(period=period)
         self.cutoff = finite_number(self, "cutoff", cutoff, low=0.0, low_open=True)
         self.order = positive_int(self, "order", order)
         self.init = one_of(self, "init", init, ("first", "zero"))
+        self.gaps = one_of(self, "gaps", gaps, ("hold", "repeat"))
         self.add_input("u", ANY)
         self.add_output("y", like="u")
         self.add_state("z", np.zeros(()))
         self.add_state("primed", False)
+        self.add_state("last", np.zeros(()))
+        self.add_state("seen", False)  # a finite sample has arrived
 
     def setup(self) -> None:
         nyquist = 0.5 / self.dt
@@ -192,15 +203,22 @@ class LowPass(Block):
         shape = self.u.spec.shape
         self.add_state("z", np.zeros((len(self.sos), 2) + shape))
         self.add_state("primed", self.init == "zero")
+        self.add_state("last", np.zeros(shape))  # the last finite value of each element, for gaps="repeat"
         self._z_next = np.zeros_like(self.z)
+        self._last_next = np.zeros(shape)
         extra = (slice(None), slice(None)) + (None,) * len(shape)
         self._zi_unit = self._zi_unit[extra]
 
     def output(self, k: int) -> None:
         x = self.u.value
-        if not np.all(np.isfinite(x)):
-            self._z_next[...] = self.z
-            return
+        finite = np.isfinite(x)
+        if not np.all(finite):
+            if self.gaps == "hold" or not self.seen:
+                self._z_next[...] = self.z
+                self._last_next[...] = self.last
+                return
+            x = np.where(finite, x, self.last)
+        self._last_next[...] = x
         if not self.primed:
             self.z = self._zi_unit * x
             self.primed = True
@@ -214,6 +232,8 @@ class LowPass(Block):
 
     def update(self, k: int) -> None:
         self.z[...] = self._z_next
+        self.last[...] = self._last_next
+        self.seen = self.seen or bool(np.all(np.isfinite(self.u.value)))
 
 
 class DiscreteLTI(Block):

@@ -11,6 +11,7 @@ import scipy.signal
 from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.blocks.specs import FLAG, PHASE
 from cogblocks.phase.gate import NUMERIC_LIMIT
+from cogblocks.phase.transient import GapTransient
 from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number, positive_int
 
@@ -158,6 +159,7 @@ class Algorithm1Phase(Block):
         cutoff: float | None = None,
         order: int = 2,
         derivative_inputs: bool = False,
+        remove_transient: bool = False,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -166,6 +168,11 @@ class Algorithm1Phase(Block):
                 f"{type(self).__name__}: derivative_inputs must be True or False, got {derivative_inputs!r}"
             )
         self.derivative_inputs = bool(derivative_inputs)
+        if not isinstance(remove_transient, (bool, np.bool_)):
+            raise ValueError(f"{type(self).__name__}: remove_transient must be True or False, got {remove_transient!r}")
+        if remove_transient and (cutoff is None or self.derivative_inputs):
+            raise ValueError(f"{type(self).__name__}: remove_transient needs a cutoff and no derivative_inputs")
+        self.remove_transient = bool(remove_transient)
         if not isinstance(unit, str) or not unit:
             raise ValueError(f"{type(self).__name__}: unit must be a non-empty string, got {unit!r}")
         self.centre_periods = positive_int(self, "centre_periods", centre_periods)
@@ -212,6 +219,8 @@ class Algorithm1Phase(Block):
         self.add_state("anchor", 0.0)  # the last measured phase, which extrapolation starts from
         self.add_state("since", 0)  # ticks since it
         self.add_state("coast", 0)  # ticks left of the hold-off after a drop-out
+        self.add_state("gap_z", np.zeros((1, 2)))  # state of the filter's response to a drop-out (remove_transient)
+        self.add_state("gap_z_run", np.zeros((1, 2)))  # that state when the current run of repeats began
         self._pending: tuple | None = None
 
     def setup(self) -> None:
@@ -222,6 +231,10 @@ class Algorithm1Phase(Block):
             if self.cutoff >= 0.5 / self.dt:
                 raise self._fail(f"cutoff {self.cutoff} Hz must be below the Nyquist frequency {0.5 / self.dt:g} Hz")
             self._sos = scipy.signal.butter(self.order, self.cutoff, fs=1.0 / self.dt, output="sos").tolist()
+        self._transient = GapTransient(self._sos) if self.remove_transient else None
+        if self._transient is not None:
+            self.add_state("gap_z", self._transient.rest())
+            self.add_state("gap_z_run", self._transient.rest())
         self._holdoff_ticks = round(self.holdoff / self.dt)
         self._size = round(self.centre_periods * self.max_period / self.dt) + 1
         self.add_state("v_hist", np.zeros(self._m))
@@ -252,12 +265,12 @@ class Algorithm1Phase(Block):
 
     def output(self, k: int) -> None:
         sample = self._sample()
-        if sample is None:  # missing: extrapolate, advance nothing else
+        if sample is None:  # missing: extrapolate, advance nothing else (but the filter's reconstruction)
             since = self.since + 1
             phase = self._extrapolate(self.anchor, since)
             self.theta.value[...] = phase
             self.held.value[...] = True
-            self._pending = ("missing", phase, since, min(self._holdoff_ticks, since))
+            self._pending = ("missing", phase, since, min(self._holdoff_ticks, since), self._fill_gap(phase))
             return
         raw, pf, v_in, a_in = sample
         dt = self.dt
@@ -283,11 +296,20 @@ class Algorithm1Phase(Block):
         elif coasting:
             since += 1
         phase = self._extrapolate(anchor, since) if coasting else 0.0
+        gap_z, gap_z_run = self.gap_z, self.gap_z_run
+        if self._transient is not None and primed:
+            if repeats == 1:
+                gap_z_run = gap_z
+            if frozen and self.since < repeats:  # just confirmed: the filter was fed the frozen value all along
+                gap = (self._movement(self._extrapolate(anchor, j)) - raw for j in range(1, repeats + 1))
+                response, gap_z = self._transient.run(gap_z_run, gap)
+            else:
+                response, gap_z = self._transient.step(gap_z, self._movement(phase) - raw if frozen else 0.0)
+            pf += response
         x = pf
         if frozen:
             # keep the centring window a whole number of periods: fill it with the coasting oscillation
-            c = math.cos(phase - self.lead) if self.omega > 0.0 else 0.0
-            x = self.p_prev - self.pc_prev + (self.amp[0] if c >= 0.0 else self.amp[1]) * c
+            x = self._movement(phase - self.lead)
         n_pushed = self.n_pushed + 1
         total = self.total + x
         n = self._window(n_pushed)
@@ -349,7 +371,31 @@ class Algorithm1Phase(Block):
         self._pending = (
             (raw, repeats, step, run_phase, pf, pc, v, n_pushed, total),
             (amp, known, last, t_max, t_min, omega, t_period, lead, phase, anchor, since, coast),
+            (gap_z, gap_z_run),
         )
+
+    def _fill_gap(self, phase: float) -> tuple | None:
+        """With ``remove_transient``, the filtered movement at a missing sample, so differences and centring go on.
+
+        The filter in front ran on the last finite sample; its output plus its response to what it missed is
+        the filtered movement as far as the extrapolation is right. Returns ``(gap_z, p, pc, v, n_pushed,
+        total)`` for :meth:`update`, or None without the removal (nothing advances).
+        """
+        pf = float(self.p.value)
+        if self._transient is None or not self.primed or not math.isfinite(pf):
+            return None
+        response, gap_z = self._transient.step(self.gap_z, self._movement(phase) - self.raw_prev)
+        pf += response
+        n_pushed, total = self.n_pushed + 1, self.total + self._movement(phase - self.lead)
+        n = self._window(n_pushed)
+        start = n_pushed - n
+        pc = pf - (total - (self.csum[start % self._size] if start else 0.0)) / n
+        return gap_z, pf, pc, (pf - self.p_prev) / self.dt, n_pushed, total
+
+    def _movement(self, phase: float) -> float:
+        """The position the oscillation of the last measured centre and amplitudes has at ``phase``."""
+        c = math.cos(phase) if self.omega > 0.0 else 0.0
+        return self.p_prev - self.pc_prev + (self.amp[0] if c >= 0.0 else self.amp[1]) * c
 
     def _frequency(self, interval: float, omega: float) -> float:
         """The angular frequency once a period of ``interval`` seconds (0 = none) was measured."""
@@ -373,7 +419,12 @@ class Algorithm1Phase(Block):
         if pending is None:
             return
         if pending[0] == "missing":
-            _, self.phase, self.since, self.coast = pending
+            _, self.phase, self.since, self.coast, filled = pending
+            if filled is not None:
+                self.gap_z, self.p_prev, self.pc_prev, self.v_prev, self.n_pushed, self.total = filled
+                self.csum[self.n_pushed % self._size] = self.total
+                self.v_hist[self.v_pos] = self.v_prev
+                self.v_pos = (self.v_pos + 1) % self._m
             return
         raw, repeats, step, run_phase, pf, pc, v, n_pushed, total = pending[0]
         amp, known, last, t_max, t_min, omega, self.t_period, lead, phase, anchor, since, coast = pending[1]
@@ -388,6 +439,7 @@ class Algorithm1Phase(Block):
         self.known[...] = known
         self.last_extremum, self.t_max, self.t_min, self.omega, self.lead = last, t_max, t_min, omega, lead
         self.phase, self.anchor, self.since, self.coast = phase, anchor, since, coast
+        self.gap_z, self.gap_z_run = pending[2]
 
 
 def _swing(start: float, span: float) -> float:

@@ -65,8 +65,13 @@ class PhaseEstimator(Diagram):
         What estimates position and velocity in front of Algorithm 1: the Butterworth low-pass and
         backward differences (default), or a Kalman filter (see above). Drop-outs are recognised
         on the raw position in both cases; the Kalman filter predicts through them.
-    unit, centre_periods, accel_window, min_dropout, dropout_period, dropout_steps, holdoff, max_coast, max_period
+    unit, centre_periods, accel_window, min_dropout, dropout_period, dropout_steps, max_coast, max_period
         As in :class:`Algorithm1Phase`.
+    holdoff : float, optional
+        As in :class:`Algorithm1Phase`; by default 0.08 s with the compensated low-pass front end, whose
+        transient after a drop-out the algorithm removes (``remove_transient``; the low-pass repeats its
+        last finite input through missing samples), and 0.2 s otherwise (the Kalman front end, or
+        ``compensate=False``), while the front end settles.
     spike_factor : float
         Spike threshold of the gate, in running mean absolute deviations (see ``SpikeGate``).
     period : float, optional
@@ -102,7 +107,7 @@ class PhaseEstimator(Diagram):
         min_dropout: float = 0.03,
         dropout_period: float = 0.25,
         dropout_steps: float = 3.0,
-        holdoff: float = 0.2,
+        holdoff: float | None = None,
         max_coast: float = 2.0,
         max_period: float = 5.0,
         spike_factor: float = 5.0,
@@ -118,6 +123,9 @@ class PhaseEstimator(Diagram):
         order = positive_int(self, "order", order)
         spike_factor = finite_number(self, "spike_factor", spike_factor, low=0.0, low_open=True)
         kalman = front_end == "kalman"
+        remove_transient = compensate and not kalman
+        if holdoff is None:  # the filter's transient is removed, so only the extrapolation needs confirming
+            holdoff = 0.08 if remove_transient else 0.2
         algorithm = Algorithm1Phase(
             unit=unit,
             centre_periods=centre_periods,
@@ -131,6 +139,7 @@ class PhaseEstimator(Diagram):
             cutoff=cutoff if compensate and not kalman else None,
             order=order,
             derivative_inputs=kalman,
+            remove_transient=remove_transient,
         )
         gate = self.add("gate", SpikeGate(factor=spike_factor, unit=unit))
         self.expose_input("p", gate.u)
@@ -142,7 +151,7 @@ class PhaseEstimator(Diagram):
             self.connect(estimator.v_hat, algorithm.v)
             self.connect(estimator.a_hat, algorithm.a)
         else:
-            lowpass = self.add("lowpass", LowPass(cutoff, order))
+            lowpass = self.add("lowpass", LowPass(cutoff, order, gaps="repeat"))
             self.add("algorithm", algorithm)
             self.connect(gate.y, lowpass.u, algorithm.raw)
             self.connect(lowpass.y, algorithm.p)

@@ -101,6 +101,28 @@ def test_lowpass_matches_scipy_sosfilt(order):
     np.testing.assert_allclose(got_first, ref_first, rtol=1e-12, atol=1e-9)
 
 
+def test_lowpass_repeating_through_gaps_filters_the_signal_with_its_gaps_filled():
+    """``gaps="repeat"``: each non-finite element is replaced by that element's last finite value."""
+    rng = np.random.default_rng(5)
+    u = np.cumsum(rng.normal(size=(300, 2)), axis=0)
+    bad = u.copy()
+    bad[:3, 1] = np.nan  # before any finite value of that element: the whole sample waits
+    bad[100:140, 0] = np.nan
+    bad[120:125, 1] = np.nan
+    filled = bad.copy()
+    for j in range(2):
+        for i in range(1, len(filled)):
+            if not np.isfinite(filled[i, j]):
+                filled[i, j] = filled[i - 1, j]
+    got = run_chain(bad, LowPass(5.0, gaps="repeat"))
+    sos = scipy.signal.butter(2, 5.0, fs=100.0, output="sos")
+    zi = scipy.signal.sosfilt_zi(sos)[:, :, None] * filled[3]
+    ref, _ = scipy.signal.sosfilt(sos, filled[3:], axis=0, zi=zi)
+    np.testing.assert_allclose(got[3:], ref, rtol=1e-12, atol=1e-9)
+    with pytest.raises(ValueError, match=r"LowPass: gaps must be one of \['hold', 'repeat'\]"):
+        LowPass(5.0, gaps="skip")
+
+
 def test_lowpass_skips_bad_samples_and_checks_nyquist():
     u = np.sin(np.arange(100) * 0.1)
     bad = u.copy()
