@@ -74,6 +74,25 @@ def test_bad_options_are_refused_before_any_run(capsys, tmp_path, argv, option, 
     assert f"argument {option}" in err and reason in err
 
 
+@pytest.mark.parametrize(
+    ("argv", "option", "reason"),
+    [
+        (["live", "sync", "--in", "a", "--out", "b", "--duration", "-1"], "--duration", "expected a duration > 0 s"),
+        (["live", "phase", "--in", "a", "--out", "b", "--duration", "1", "--timeout", "x"], "--timeout", "got 'x'"),
+        (["live", "sync", "--in", "a", "--out", "b", "--duration", "1", "--policy", "best"], "--policy", "'best'"),
+        (["sweep", "sync", "--workers", "0"], "--workers", "expected an integer >= 1, got 0"),
+        (["sweep", "sync", "--random", "-2"], "--random", "expected an integer >= 1, got -2"),
+        (["sweep", "sync", "--group-seed", "-1"], "--group-seed", "expected an integer >= 0, got -1"),
+        (["sweep", "sync", "--seeds", "two"], "--seeds", "expected an integer >= 1, got 'two'"),
+    ],
+)
+def test_live_and_sweep_options_are_refused_before_any_run(capsys, argv, option, reason):
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert f"argument {option}" in err and reason in err
+
+
 def test_a_failed_plot_keeps_the_printed_results(capsys, tmp_path):
     """The figure is drawn after the results are printed: a file system error loses nothing."""
     plot = tmp_path / "figure.png"  # valid folder and format, but a link to a folder removed since

@@ -28,7 +28,7 @@ ALLOWED = {
     "catalogue": {"sim", "blocks", "sensing", "phase", "sync", "amplification"},
     "diagrams": {"sim", "data", "blocks", "sensing", "phase", "sync", "amplification"},
     "training": {"sim", "data", "blocks", "sync", "amplification", "diagrams"},
-    "live": {"sim", "data", "blocks", "sensing", "phase", "sync", "diagrams"},
+    "live": {"sim", "data", "blocks", "sensing", "phase", "sync", "diagrams", "cli_options"},
     "experiments": {
         "sim",
         "data",
@@ -41,6 +41,7 @@ ALLOWED = {
         "training",
         "catalogue",
         "analysis",
+        "cli_options",
     },
     "cli_options": {"diagrams"},
     "cli": {

@@ -6,6 +6,8 @@ import argparse
 import json
 from typing import Any
 
+from cogblocks.cli_options import COUNT, SEED
+
 __all__ = ["add_sweep_parser"]
 
 
@@ -31,16 +33,16 @@ def add_sweep_parser(commands: Any) -> None:
     sync.add_argument(
         "--groups", type=_int_list, default=None, help="Table 2's groups, e.g. 1,2,3 (default: all, unless --random)"
     )
-    sync.add_argument("--random", type=int, metavar="N", help="also N held-out random groups (random_groups)")
+    sync.add_argument("--random", type=COUNT, metavar="N", help="also N held-out random groups (random_groups)")
     sync.add_argument("--split", default="test", help="split of the random groups (default 'test')")
-    sync.add_argument("--group-seed", type=int, default=0, help="seed of the random groups (default 0)")
+    sync.add_argument("--group-seed", type=SEED, default=0, help="seed of the random groups (default 0)")
     sync.add_argument(
         "--policies", type=_name_list, default=["mean", "lookahead", "dqn"], help="motion computers (default all)"
     )
     sync.add_argument("--domain", choices=("phase", "position"), default="phase", help="see `run sync --domain`")
-    sync.add_argument("--seeds", type=int, default=1, help="replicates per run (position domain noise; default 1)")
+    sync.add_argument("--seeds", type=COUNT, default=1, help="replicates per run (position domain noise; default 1)")
     sync.add_argument("--backend", choices=("loky", "dask", "serial"), default="loky", help="default loky")
-    sync.add_argument("--workers", type=int, default=None, help="workers (default: all cores)")
+    sync.add_argument("--workers", type=COUNT, default=None, help="workers (default: all cores)")
     sync.add_argument("--scheduler", metavar="ADDRESS", help="a dask scheduler address (default: a local cluster)")
     sync.add_argument("--out", metavar="FILE", help="write every run to FILE (.parquet or .csv)")
     sync.add_argument("--json", action="store_true", help="print the summary as JSON")

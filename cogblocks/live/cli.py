@@ -6,6 +6,8 @@ import argparse
 import json
 from typing import Any
 
+from cogblocks.cli_options import POLICY, STEP
+
 __all__ = ["add_live_parser"]
 
 DT = 0.01  # 100 Hz
@@ -65,13 +67,18 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
         p = diagrams.add_parser(name, help=text, description=text)
         p.add_argument("--in", dest="in_stream", required=True, metavar="STREAM", help="name of the input stream")
         p.add_argument("--out", dest="out_stream", required=True, metavar="STREAM", help="name of the output stream")
-        p.add_argument("--duration", type=float, required=True, metavar="S", help="seconds to run (Ctrl-C stops)")
-        p.add_argument("--timeout", type=float, default=5.0, metavar="S", help="seconds to wait for the input stream")
+        p.add_argument("--duration", type=STEP, required=True, metavar="S", help="seconds to run (Ctrl-C stops)")
+        p.add_argument("--timeout", type=STEP, default=5.0, metavar="S", help="seconds to wait for the input stream")
         p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
         p.add_argument("--save", metavar="FILE", help="save the trace and the raw input samples to FILE (.npz)")
         if name == "sync":
             p.add_argument("--group", type=int, choices=(1, 2, 3), default=1, help="Table 2's group (default 1)")
-            p.add_argument("--policy", default="dqn", help="motion computer: dqn, lookahead or mean (default dqn)")
+            p.add_argument(
+                "--policy",
+                type=POLICY,
+                default="dqn",
+                help="motion computer, e.g. dqn, lookahead or mean (default dqn)",
+            )
         if name == "l1":
             p.add_argument("--delay", type=float, default=0.1, help="delay to compensate, seconds (default 0.1)")
         p.set_defaults(handler=_run_live)
