@@ -81,14 +81,17 @@ def _run_sync(args: argparse.Namespace) -> int:
 
 
 def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
-    from cogblocks.experiments.sync_heldout import heldout_table
+    from cogblocks.experiments.sync_heldout import heldout_table, plot_heldout
 
-    if args.plot or args.domain != "phase" or args.duration is not None or args.save_trace:
+    if args.domain != "phase" or args.duration is not None or args.save_trace:
         raise ValueError(
-            "--random evaluates each group over its own duration in the phase domain and draws no figure: "
-            "drop --plot, --domain, --duration and --save-trace (--max-duration cuts long groups)"
+            "--random evaluates each group over its own duration in the phase domain: "
+            "drop --domain, --duration and --save-trace (--max-duration cuts long groups)"
         )
-    result = heldout_table(args.random, args.seed, motions, workers=args.workers, max_duration=args.max_duration)
+    result = heldout_table(
+        args.random, args.seed, motions, workers=args.workers, max_duration=args.max_duration, details=bool(args.plot)
+    )
+    groups = result.pop("groups", None)
 
     def render(r: dict[str, Any]) -> str:
         lines = [
@@ -106,6 +109,7 @@ def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
         return "\n".join(lines)
 
     _print_result(result, args.json, render)
+    _plot(args.plot, lambda path: plot_heldout({**result, "groups": groups}, path))
     return 0
 
 

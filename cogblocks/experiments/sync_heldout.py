@@ -19,7 +19,7 @@ from cogblocks.data.groups import SyncGroup, random_groups
 from cogblocks.diagrams.sync import MOTIONS, run_sync
 from cogblocks.sync.model import BlenderParams
 
-__all__ = ["evaluate_group", "heldout_table", "summarise"]
+__all__ = ["evaluate_group", "heldout_table", "plot_heldout", "summarise"]
 
 #: Below this headroom (bound minus r without L2; r is in [0, 1]) a group's fraction of the bound is left
 #: out of the mean: a tiny denominator would let one group dominate it.
@@ -132,3 +132,40 @@ def heldout_table(
     if details:
         table["groups"] = rows
     return table
+
+
+def plot_heldout(table: dict[str, Any], path: str) -> None:
+    """Save each group's change of r against the bound's change, one panel per policy.
+
+    ``table`` is :func:`heldout_table`'s result with ``details=True``. A point on the diagonal reaches
+    the bound; below 0 the policy lowers r. The bound is the best constant reference frequency, not a
+    true upper bound: points above the diagonal are possible.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = table.get("groups")
+    if not rows:
+        raise ValueError("plot_heldout needs heldout_table(..., details=True)")
+    policies = [p["policy"] for p in table["policies"]]
+    bound = np.array([100.0 * (row["r_bound"] - row["r_without"]) / row["r_without"] for row in rows])
+    fig, axes = plt.subplots(1, len(policies), figsize=(4.2 * len(policies), 4.0), squeeze=False, sharey=True)
+    low, high = min(0.0, bound.min()), max(1.0, bound.max())
+    for ax, policy in zip(axes[0], policies, strict=True):
+        change = np.array([next(r for r in row["results"] if r["policy"] == policy)["change_pct"] for row in rows])
+        lowered = change < 0.0
+        ax.plot([low, high], [low, high], color="0.6", lw=0.8, label="= bound")
+        ax.axhline(0.0, color="0.3", lw=0.8)
+        ax.scatter(bound[~lowered], change[~lowered], s=9, color="tab:blue", label="raised")
+        ax.scatter(bound[lowered], change[lowered], s=12, color="tab:red", label=f"lowered ({lowered.sum()})")
+        ax.set_title(f"{policy}: mean {change.mean():+.2f} %, worst {change.min():+.2f} %", fontsize=9)
+        ax.set_xlabel("bound's change of r (%)")
+        ax.set_xscale("symlog", linthresh=1.0)
+        ax.legend(fontsize=7, loc="upper left")
+    axes[0][0].set_ylabel("policy's change of r (%)")
+    fig.suptitle(f"{table['n_groups']} held-out test groups (seed {table['seed']})", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

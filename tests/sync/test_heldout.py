@@ -11,7 +11,7 @@ from cogblocks.analysis.sync_bound import constant_frequency_scan, upper_bound
 from cogblocks.cli import main
 from cogblocks.data.groups import SyncGroup, locking_gain, random_groups
 from cogblocks.diagrams.sync import run_sync
-from cogblocks.experiments.sync_heldout import heldout_table
+from cogblocks.experiments.sync_heldout import heldout_table, plot_heldout
 from cogblocks.sync import SyncModel
 from cogblocks.sync.model import order_parameter
 
@@ -136,3 +136,17 @@ def test_cli_random_json(capsys):
     assert "--group: not allowed with argument --random" in capsys.readouterr().err
     assert main(["run", "sync", "--random", "0"]) == 2
     assert "--random" in capsys.readouterr().err
+
+
+def test_cli_random_plot_draws_each_groups_change_against_the_bound(capsys, tmp_path):
+    """``--plot`` with ``--random``: the figure is drawn after the JSON, which keeps its keys."""
+    path = tmp_path / "heldout.png"
+    argv = ["run", "sync", "--random", "2", "--max-duration", "1", "--policy", "mean", "--json", "--plot", str(path)]
+    assert main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"n_groups", "seed", "policies"}
+    assert path.stat().st_size > 1000 and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["run", "sync", "--random", "2", "--domain", "position"]) == 2
+    assert "--random evaluates each group over its own duration in the phase domain" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="plot_heldout needs heldout_table"):
+        plot_heldout({"n_groups": 2, "seed": 0, "policies": []}, str(path))
