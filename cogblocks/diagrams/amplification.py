@@ -29,7 +29,13 @@ from cogblocks.amplification.judges import BLENDER_ENSEMBLE, Judges, load_ensemb
 from cogblocks.amplification.l2 import L2Amplification
 from cogblocks.blocks import Playback, Probe
 from cogblocks.data.reach import ReachLibrary
-from cogblocks.diagrams.amplification_setup import AmplificationSetup, amplification_judges, amplification_setup
+from cogblocks.diagrams.amplification_setup import (
+    OPTIMISED,
+    AmplificationSetup,
+    amplification_judges,
+    amplification_setup,
+    optimised_subspace,
+)
 from cogblocks.sensing import KalmanEstimator
 from cogblocks.sim import Block, Diagram, Simulator
 from cogblocks.sim.params import finite_number, one_of
@@ -182,8 +188,8 @@ def run_amplification(
     ----------
     variants : sequence of {"blend", "blend_rl", "optimised"}
         Blending alone, blending with the RL corrector, and the optimisation-based blending
-        (:class:`~cogblocks.amplification.OptimalBlender`, without corrector; not run
-        unless asked).
+        (:class:`~cogblocks.amplification.OptimalBlender` configured as :data:`OPTIMISED`, with the
+        setup's subspace; without corrector).
     seed : int, optional
         Seed of the 70/30 split; by default the encoder's own validation split (see
         :func:`amplification_setup`).
@@ -288,7 +294,9 @@ def _optimal_blender(setup: AmplificationSetup, networks: Sequence[EncoderNet]) 
     # imported here: casadi (about 0.1 s to import) is loaded only when the optimised variant is asked for
     from cogblocks.amplification import OptimalBlender
 
-    return OptimalBlender(setup.movements, list(networks), setup.table, e_des=setup.e_des)
+    subspace = setup.subspace if setup.subspace is not None else optimised_subspace(setup.movements, setup.e_des)
+    options = {k: v for k, v in OPTIMISED.items() if k != "components"}
+    return OptimalBlender(setup.movements, list(networks), setup.table, e_des=setup.e_des, subspace=subspace, **options)
 
 
 def plot_amplification(path: str, index: int | None = None, variant: str = "blend", seed: int | None = None) -> None:
