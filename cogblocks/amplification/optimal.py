@@ -15,13 +15,10 @@ full length) and only the samples up to the next decision are applied. Cubic-spl
 linear in the samples for a fixed length (:func:`input_map`), so the classifier input is affine in
 the knots and the only nonlinearity is the network itself (:func:`encoder_to_casadi`).
 
-Why these decision variables. A correction added to the *measured* human velocity keeps the
-terminal constraint independent of the prediction: the final gap ``p_a − p_h`` is ``dt·Σ u``
-whatever the human does next (as long as the human has stopped by the planned end), so only the
-encoding constraint relies on η_i. Knots every ΔT samples keep the problem small (at most 3 × 19
-variables over a 200-sample window) and the correction smooth, where a per-sample correction would
-invite sample-to-sample wiggles that fool the classifier. A blend coefficient against ``v_r`` would inherit
-the table's limits (``docs/pop-amplification.md``: blending alone encodes 32 %)."""
+Why these decision variables: a correction added to the *measured* human velocity keeps the
+terminal constraint independent of the prediction (the final gap is ``dt·Σ u`` whatever the human
+does next, once stopped by the planned end); knots every ΔT samples keep the problem small (at most
+3 × 19 variables) and the correction smooth; a blend against ``v_r`` would inherit the table's limits."""
 
 from __future__ import annotations
 
@@ -44,7 +41,7 @@ from cogblocks.amplification.encoder import (
 from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, _weights, _weights_key
 from cogblocks.amplification.linearised import LinearisedSolver
 from cogblocks.amplification.solution import SolutionTable
-from cogblocks.amplification.subspace import MovementSubspace
+from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
 from cogblocks.blocks.samples import plausible
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim import Block
@@ -109,8 +106,9 @@ class OptimalBlender(Block):
     the reported ε̂ and the acceptance checks use the exact network.
 
     The classifier restricts a movement to its samples up to the last one faster than 1 mm/s, so
-    the plan fixes that length ``L``: at least the lengths of η_i and of the reference, past ``T``
-    while the human still moves, and never decreasing; from ``L`` on the block outputs zero, and
+    the plan fixes that length ``L``: at least the reference's length (and η_i's, encoding fear), past
+    ``T`` while the human still moves (removing fear: only at the first plan, so that the altered
+    movement may end sooner than the human's), never decreasing; from ``L`` on the block outputs zero, and
     the last constraint keeps the last planned sample moving, so the classifier sees the length the
     plan was made for. The encoding constraint is soft with an exact penalty (ρ = 1000 per logit
     unit): when it cannot be met, the plan gets as close as it can instead of failing. Only the
@@ -166,13 +164,21 @@ class OptimalBlender(Block):
         machine. sqpmethod: an iteration callback stops it before an iteration that, taking as long
         as the previous one, would end past the limit; IPOPT: ``max_cpu_time``, checked at the end
         of each iteration. Building the problem and checking the result (about 0.3 ms) come on top.
-    solver : {"sqpmethod", "ipopt"}
-        casadi's SQP with the ``qrqp`` QP solver (default: a few iterations of a dense QP), or
-        IPOPT (interior point; about 0.5 ms per iteration of overhead at this size).
+    solver : {"sqpmethod", "ipopt", "linearised"}
+        casadi's SQP with the ``qrqp`` QP solver (default), IPOPT (about 0.5 ms per iteration of
+        overhead at this size), or :class:`~cogblocks.amplification.linearised.LinearisedSolver`:
+        sequential QPs on the exact ReLU networks in NumPy (no Hessian; the first plan starts from
+        no correction; a run out of time keeps its best acceptable iterate).
     sharpness : float
-        β of the softplus that replaces ReLU inside the solver (10; pre-activations are of order 1).
+        β of the softplus that replaces ReLU inside casadi's solvers (10).
     rest_speed : float
         Speed (mm/s) at or below which the human is at rest (1, the classifier's).
+    subspace : MovementSubspace, optional
+        Realistic movements of class ``e_des`` (:func:`~cogblocks.amplification.subspace.movement_subspace`):
+        the cost gains ``realism · r²/(100 mm/s)²``, ``r`` the altered movement's classifier input's
+        distance from the subspace, so the plan stays near real movements of the class.
+    realism : float
+        Weight of that penalty against ``Σ‖u‖²`` (only with ``subspace``).
 
     Notes
     -----
@@ -237,15 +243,7 @@ class OptimalBlender(Block):
         self.solver = one_of(self, "solver", solver, ("sqpmethod", "ipopt", "linearised"))
         self.sharpness = finite_number(self, "sharpness", sharpness, low=0.0, low_open=True)
         self.rest_speed = finite_number(self, "rest_speed", rest_speed, low=0.0)
-        n_in = networks[0].hidden.in_features
-        if subspace is not None and (
-            not isinstance(subspace, MovementSubspace) or subspace.e_des != self.e_des or len(subspace.mean) != n_in
-        ):
-            raise ValueError(
-                f"OptimalBlender: subspace must be a MovementSubspace of {n_in} inputs for e_des={self.e_des}, got "
-                f"{type(subspace).__name__} (e_des={getattr(subspace, 'e_des', None)})"
-            )
-        self.subspace = subspace
+        self.subspace = checked_subspace("OptimalBlender", subspace, self.e_des, networks[0].hidden.in_features)
         self.realism = finite_number(self, "realism", realism, low=0.0)
         self._delta = self.delta_pos - self.terminal_margin
         self.library = library
@@ -338,8 +336,10 @@ class OptimalBlender(Block):
         nearest, reference = int(self.nearest.value), int(self.reference.value)
         lib = self.library
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
-        length = max(self.end, int(lib.length[nearest]), int(lib.length[reference]))
-        if not at_rest:
+        # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
+        # is enough: the altered movement may end before the human's, having covered the same distance sooner
+        length = max(self.end, int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
+        if not at_rest and (self.e_des or self.end == 0):
             length = max(length, t + self.knot_spacing)
         length = min(length, len(self.human))
         predicted = np.zeros_like(self.human)

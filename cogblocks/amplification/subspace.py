@@ -21,7 +21,7 @@ from cogblocks.data.features import classifier_inputs
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim.params import one_of, positive_int
 
-__all__ = ["MovementSubspace", "load_subspace", "movement_subspace"]
+__all__ = ["MovementSubspace", "checked_subspace", "load_subspace", "movement_subspace"]
 
 
 @dataclass(frozen=True)
@@ -112,3 +112,15 @@ def load_subspace(path: str | os.PathLike) -> MovementSubspace:
         if missing:
             raise ValueError(f"{path}: not a MovementSubspace file (missing {', '.join(sorted(missing))})")
         return MovementSubspace(data["mean"], data["components"], float(data["explained"]), int(data["e_des"]))
+
+
+def checked_subspace(owner: str, subspace: object, e_des: int, n_inputs: int) -> MovementSubspace | None:
+    """``subspace`` if ``None`` or a :class:`MovementSubspace` of ``n_inputs`` inputs for ``e_des``; else an error."""
+    if subspace is None or (
+        isinstance(subspace, MovementSubspace) and subspace.e_des == e_des and len(subspace.mean) == n_inputs
+    ):
+        return subspace
+    raise ValueError(
+        f"{owner}: subspace must be a MovementSubspace of {n_inputs} inputs for e_des={e_des}, got "
+        f"{type(subspace).__name__} (e_des={getattr(subspace, 'e_des', None)})"
+    )
