@@ -173,13 +173,18 @@ class LinearisedSolver:
     ) -> tuple[np.ndarray | None, str, int]:
         """Plan variables (None: none acceptable), status and iterations of one decision.
 
-        ``p`` holds ``A, x0, H, q, C, g0, d`` and ``rhs`` as the SQP's parameters. Each iteration
-        solves ``min wᵀHw + 2qᵀw + μ‖w − w_k‖² + ρ Σ s_j`` subject to the members' linearised
-        encoding constraints (slack ``s_j`` each), the speed constraint and the terminal ball's
-        tangent half-space at the current gap, through its dual (:func:`box_qp`). An iterate is
-        acceptable when every exact network is beyond ``z_clip`` and the gap within ``delta_pos``;
-        the cheapest acceptable iterate is returned, ``"converged"`` once a step is small and meets
-        ``z_target``, otherwise ``"accepted"``.
+        ``p`` holds ``A, x0, H, q, C, g0, d`` and ``rhs`` as the SQP's parameters (classifier input
+        ``x0 + A w``, cost ``wᵀHw + 2qᵀw``, gap ``g0 + C w``, last speed ``dᵀw ≥ rhs[2]``). Each
+        iteration solves ``min wᵀHw + 2qᵀw + μ‖w − w_k‖² + ρ Σ s_j`` subject to the members'
+        linearised encoding constraints ``sign·z_j ≥ z_target`` (slack ``s_j`` each) and the speed
+        constraint, through its dual (:func:`box_qp`), adding up to two tangent planes of the ball
+        ``‖gap‖ ≤ delta`` while the step lies outside it; then a backtracking line search on the
+        exact ℓ1 merit. An iterate is acceptable when every exact network is beyond ``z_clip`` and
+        the gap within ``delta_pos``; the cheapest acceptable iterate is returned, ``"converged"``
+        once a step is small (or no cheaper) and meets ``z_target``, otherwise ``"accepted"``; a
+        fixed point short of ``z_clip`` within ``delta_pos`` is returned as ``"converged"`` too (as
+        close as the plan can get, like the SQP's exact penalty). ``time_limit`` (s of CPU time)
+        stops it before an iteration predicted to end past it, after at least one iteration.
         """
         start = previous = time.thread_time()
         a, c, g0 = p["A"], p["C"], p["g0"]
