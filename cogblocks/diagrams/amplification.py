@@ -8,7 +8,7 @@ validation figures on the held-out no-fear movements of the synthetic library.""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -177,6 +177,7 @@ def run_amplification(
     judges: Judges | None = None,
     blender_networks: Sequence[EncoderNet] | None = None,
     corrector: CorrectorNet | None = None,
+    optimised: Mapping[str, Any] | None = None,
 ) -> dict[str, dict[str, Any]]:
     """Replay every validation movement that does not encode ``e_des`` through the online architecture.
 
@@ -208,6 +209,9 @@ def run_amplification(
         ``encoder_ensemble.pt``.
     corrector : CorrectorNet, optional
         The RL corrector's network; the shipped one by default.
+    optimised : mapping, optional
+        Keyword arguments of the optimised blender instead of :data:`OPTIMISED` (without
+        ``components``: the subspace is the setup's).
 
     Returns
     -------
@@ -243,7 +247,7 @@ def run_amplification(
     for variant in variants:
         encoded, distances, solve_ms, fallbacks, altered = [], [], [], 0, []
         for index in humans:
-            blender = _optimal_blender(setup, blender_networks) if variant == "optimised" else None
+            blender = _optimal_blender(setup, blender_networks, optimised) if variant == "optimised" else None
             d = pop_amplification(
                 (setup.library.velocity[index], setup.library.position[index]),
                 setup.movements,
@@ -290,12 +294,15 @@ def _judged(judges: Judges, altered: list[np.ndarray], e_des: int) -> dict[str, 
     }
 
 
-def _optimal_blender(setup: AmplificationSetup, networks: Sequence[EncoderNet]) -> Block:
+def _optimal_blender(
+    setup: AmplificationSetup, networks: Sequence[EncoderNet], options: Mapping[str, Any] | None = None
+) -> Block:
     # imported here: casadi (about 0.1 s to import) is loaded only when the optimised variant is asked for
     from cogblocks.amplification import OptimalBlender
 
     subspace = setup.subspace if setup.subspace is not None else optimised_subspace(setup.movements, setup.e_des)
-    options = {k: v for k, v in OPTIMISED.items() if k != "components"}
+    if options is None:
+        options = {k: v for k, v in OPTIMISED.items() if k != "components"}
     return OptimalBlender(setup.movements, list(networks), setup.table, e_des=setup.e_des, subspace=subspace, **options)
 
 
