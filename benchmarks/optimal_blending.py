@@ -4,8 +4,10 @@
 
 Held-out no-fear movements of the shipped encoder's split are replayed through the architecture
 in the same run: with the table-lookup :class:`~cogblocks.amplification.VelocityBlender` (the
-reference), with :class:`~cogblocks.amplification.OptimalBlender` (one casadi solve per
-decision, 8 ms limit; sqpmethod, and IPOPT in the full run) and with the table lookup plus the
+reference), with :class:`~cogblocks.amplification.OptimalBlender` as ``cogblocks run amplification``
+runs it ("realistic": the blender ensemble, the realism subspace and the linearised solver, 3.5 ms
+limit), with one network and casadi (8 ms limit; sqpmethod, and IPOPT in the full run) and with the
+table lookup plus the
 :class:`~cogblocks.amplification.RLCorrector`. A blender's decision is its output on a tick where the
 projector's decision count changes: for the table, looking ``c`` up and blending; for the
 optimiser, building the problem, solving it and checking the result (decisions after the planned
@@ -29,7 +31,8 @@ import numpy as np
 import torch
 
 from cogblocks.amplification import OptimalBlender, RLCorrector, load_corrector
-from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
+from cogblocks.amplification.judges import BLENDER_ENSEMBLE, load_ensemble
+from cogblocks.diagrams.amplification import _optimal_blender, amplification_setup, pop_amplification
 from cogblocks.sim import Block, Simulator
 
 
@@ -56,8 +59,12 @@ def _replay(setup, humans: np.ndarray, variant: str) -> tuple[np.ndarray, int]:
     times, fallbacks = [], 0
     network = load_corrector()
     for human in humans:
-        optimal = variant not in ("table", "rl")
-        blender = OptimalBlender(setup.movements, setup.encoder, setup.table, solver=variant) if optimal else None
+        if variant == "realistic":  # what `cogblocks run amplification` runs: the blender ensemble, OPTIMISED
+            blender = _optimal_blender(setup, [setup.encoder, *load_ensemble(BLENDER_ENSEMBLE)])
+        elif variant not in ("table", "rl"):
+            blender = OptimalBlender(setup.movements, setup.encoder, setup.table, solver=variant)
+        else:
+            blender = None
         d = pop_amplification(
             (setup.library.velocity[human], setup.library.position[human]),
             setup.movements,
@@ -88,12 +95,15 @@ def _replay(setup, humans: np.ndarray, variant: str) -> tuple[np.ndarray, int]:
 
 
 def run(quick: bool = False) -> Iterator[dict]:
-    """Yield p50/p99 of the time per decision (wall and CPU): sqpmethod, the RL corrector and (full run) IPOPT."""
+    """Yield p50/p99 of the time per decision (wall and CPU): the runner's realistic configuration, sqpmethod,
+    the RL corrector and (full run) IPOPT."""
     torch.set_num_threads(1)
     setup = amplification_setup()
     humans = setup.humans[:3] if quick else setup.humans
     table, _ = _replay(setup, humans, "table")
-    variants = [("sqpmethod", humans), ("rl", humans)] + ([] if quick else [("ipopt", humans[:20])])
+    variants = [("realistic", humans), ("sqpmethod", humans), ("rl", humans)] + (
+        [] if quick else [("ipopt", humans[:20])]
+    )
     for variant, movements in variants:
         measured, fallbacks = _replay(setup, movements, variant)
         for clock, column in (("wall", 0), ("cpu", 1)):

@@ -184,30 +184,31 @@ def ensemble_logits(networks: Sequence[EncoderNet], sharpness: float | None = No
 
 
 def _solver(
-    networks: Sequence[EncoderNet], key: str, n: int, method: str, time_limit: float, sharpness: float
+    networks: Sequence[EncoderNet], key: str, m: int, method: str, time_limit: float, sharpness: float
 ) -> _Solver:
-    """The parametric NLP of one decision with ``n`` free knots per axis (see :class:`OptimalBlender`).
+    """The parametric NLP of one decision with ``m`` decision variables (see :class:`OptimalBlender`).
 
+    The variables ``w`` enter linearly everywhere but in the networks: the classifier input is
+    ``x0 + A w``, the cost ``wᵀ H w + 2 qᵀ w``, the position gap ``g0 + C w`` and the speed of the last
+    planned sample ``dᵀ w`` (knots of the correction, or coordinates in a :class:`MovementSubspace`).
     One encoding constraint per network: the plan must satisfy every member (the ensemble's minimum).
     """
-    cache_key = (key, n, method, time_limit, sharpness)
+    cache_key = (key, m, method, time_limit, sharpness)
     if cache_key in _SOLVERS:
         return _SOLVERS[cache_key]
     members = len(networks)
     n_in = networks[0].hidden.in_features
-    w = ca.MX.sym("w", 3 * n)  # knots, axis-major, in units of _U_SCALE
+    w = ca.MX.sym("w", m)  # in units of _U_SCALE
     s = ca.MX.sym("s")  # encoding slack, in logit units
-    sizes = {"A": n_in * 3 * n, "x0": n_in, "G": n * n, "q": 3 * n, "cs": n, "g0": 3, "dir": 3, "rhs": 4}
+    sizes = {"A": n_in * m, "x0": n_in, "H": m * m, "q": m, "C": 3 * m, "g0": 3, "d": m, "rhs": 4}
     p = ca.MX.sym("p", sum(sizes.values()))
     part = dict(zip(sizes, ca.vertsplit(p, [int(i) for i in np.cumsum([0, *sizes.values()])]), strict=True))
-    a, g = ca.reshape(part["A"], n_in, 3 * n), ca.reshape(part["G"], n, n)
+    a, h, c = ca.reshape(part["A"], n_in, m), ca.reshape(part["H"], m, m), ca.reshape(part["C"], 3, m)
     sign, z_rhs, speed_rhs, delta = ca.vertsplit(part["rhs"])
-    axes = ca.vertsplit(w, [0, n, 2 * n, 3 * n])
-    cost = sum(ca.dot(u, ca.mtimes(g, u)) for u in axes) + 2 * ca.dot(part["q"], w) + _PENALTY * s
+    cost = ca.dot(w, ca.mtimes(h, w)) + 2 * ca.dot(part["q"], w) + _PENALTY * s
     z = ensemble_logits(networks, sharpness)(ca.mtimes(a, w) + part["x0"])
-    gap = part["g0"] + ca.vertcat(*[ca.dot(part["cs"], u) for u in axes])
-    last = ca.vertcat(*[u[n - 1] for u in axes])
-    constraints = ca.vertcat(sign * z + s - z_rhs, ca.sumsqr(gap) - delta**2, ca.dot(part["dir"], last) - speed_rhs)
+    gap = part["g0"] + ca.mtimes(c, w)
+    constraints = ca.vertcat(sign * z + s - z_rhs, ca.sumsqr(gap) - delta**2, ca.dot(part["d"], w) - speed_rhs)
     nlp = {"x": ca.vertcat(w, s), "p": p, "f": cost, "g": constraints}
     deadline = None
     if method == "ipopt":
@@ -221,8 +222,8 @@ def _solver(
             "ipopt.mu_init": 1e-3,
         }
     else:
-        m = members + 2
-        deadline = _Deadline({"x": 3 * n + 1, "f": 1, "g": m, "lam_x": 3 * n + 1, "lam_g": m, "lam_p": p.numel()})
+        rows = members + 2
+        deadline = _Deadline({"x": m + 1, "f": 1, "g": rows, "lam_x": m + 1, "lam_g": rows, "lam_p": p.numel()})
         options = {
             "print_time": False,
             "print_header": False,
@@ -241,6 +242,6 @@ def _solver(
             "error_on_fail": False,
             "iteration_callback": deadline,
         }
-    solver = _Solver(ca.nlpsol(f"optimal_blending_{n}", method, nlp, options), deadline)
+    solver = _Solver(ca.nlpsol(f"optimal_blending_{m}", method, nlp, options), deadline)
     _SOLVERS[cache_key] = solver
     return solver

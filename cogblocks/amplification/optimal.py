@@ -15,13 +15,10 @@ full length) and only the samples up to the next decision are applied. Cubic-spl
 linear in the samples for a fixed length (:func:`input_map`), so the classifier input is affine in
 the knots and the only nonlinearity is the network itself (:func:`encoder_to_casadi`).
 
-Why these decision variables. A correction added to the *measured* human velocity keeps the
-terminal constraint independent of the prediction: the final gap ``p_a − p_h`` is ``dt·Σ u``
-whatever the human does next (as long as the human has stopped by the planned end), so only the
-encoding constraint relies on η_i. Knots every ΔT samples keep the problem small (at most 3 × 19
-variables over a 200-sample window) and the correction smooth, where a per-sample correction would
-invite sample-to-sample wiggles that fool the classifier. A blend coefficient against ``v_r`` would inherit
-the table's limits (``docs/pop-amplification.md``: blending alone encodes 32 %)."""
+Why these decision variables: a correction added to the *measured* human velocity keeps the
+terminal constraint independent of the prediction (the final gap is ``dt·Σ u`` whatever the human
+does next, once stopped by the planned end); knots every ΔT samples keep the problem small (at most
+3 × 19 variables) and the correction smooth; a blend against ``v_r`` would inherit the table's limits."""
 
 from __future__ import annotations
 
@@ -42,7 +39,9 @@ from cogblocks.amplification.encoder import (
     resampling_matrix,
 )
 from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, _weights, _weights_key
+from cogblocks.amplification.linearised import LinearisedSolver
 from cogblocks.amplification.solution import SolutionTable
+from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
 from cogblocks.blocks.samples import plausible
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim import Block
@@ -107,8 +106,9 @@ class OptimalBlender(Block):
     the reported ε̂ and the acceptance checks use the exact network.
 
     The classifier restricts a movement to its samples up to the last one faster than 1 mm/s, so
-    the plan fixes that length ``L``: at least the lengths of η_i and of the reference, past ``T``
-    while the human still moves, and never decreasing; from ``L`` on the block outputs zero, and
+    the plan fixes that length ``L``: at least the reference's length (and η_i's, encoding fear), past
+    ``T`` while the human still moves (removing fear: only at the first plan, so that the altered
+    movement may end sooner than the human's), never decreasing; from ``L`` on the block outputs zero, and
     the last constraint keeps the last planned sample moving, so the classifier sees the length the
     plan was made for. The encoding constraint is soft with an exact penalty (ρ = 1000 per logit
     unit): when it cannot be met, the plan gets as close as it can instead of failing. Only the
@@ -164,13 +164,21 @@ class OptimalBlender(Block):
         machine. sqpmethod: an iteration callback stops it before an iteration that, taking as long
         as the previous one, would end past the limit; IPOPT: ``max_cpu_time``, checked at the end
         of each iteration. Building the problem and checking the result (about 0.3 ms) come on top.
-    solver : {"sqpmethod", "ipopt"}
-        casadi's SQP with the ``qrqp`` QP solver (default: a few iterations of a dense QP), or
-        IPOPT (interior point; about 0.5 ms per iteration of overhead at this size).
+    solver : {"sqpmethod", "ipopt", "linearised"}
+        casadi's SQP with the ``qrqp`` QP solver (default), IPOPT (about 0.5 ms per iteration of
+        overhead at this size), or :class:`~cogblocks.amplification.linearised.LinearisedSolver`:
+        sequential QPs on the exact ReLU networks in NumPy (no Hessian; the first plan starts from
+        no correction; a run out of time keeps its best acceptable iterate).
     sharpness : float
-        β of the softplus that replaces ReLU inside the solver (10; pre-activations are of order 1).
+        β of the softplus that replaces ReLU inside casadi's solvers (10).
     rest_speed : float
         Speed (mm/s) at or below which the human is at rest (1, the classifier's).
+    subspace : MovementSubspace, optional
+        Realistic movements of class ``e_des`` (:func:`~cogblocks.amplification.subspace.movement_subspace`):
+        the cost gains ``realism · r²/(100 mm/s)²``, ``r`` the altered movement's classifier input's
+        distance from the subspace, so the plan stays near real movements of the class.
+    realism : float
+        Weight of that penalty against ``Σ‖u‖²`` (only with ``subspace``).
 
     Notes
     -----
@@ -200,6 +208,8 @@ class OptimalBlender(Block):
         solver: str = "sqpmethod",
         sharpness: float = 10.0,
         rest_speed: float = REST_SPEED,
+        subspace: MovementSubspace | None = None,
+        realism: float = 30.0,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -230,9 +240,12 @@ class OptimalBlender(Block):
         self.end_speed = finite_number(self, "end_speed", end_speed, low=0.0)
         self.knot_spacing = positive_int(self, "knot_spacing", knot_spacing)
         self.time_limit_ms = finite_number(self, "time_limit_ms", time_limit_ms, low=0.0, low_open=True)
-        self.solver = one_of(self, "solver", solver, ("sqpmethod", "ipopt"))
+        self.solver = one_of(self, "solver", solver, ("sqpmethod", "ipopt", "linearised"))
         self.sharpness = finite_number(self, "sharpness", sharpness, low=0.0, low_open=True)
         self.rest_speed = finite_number(self, "rest_speed", rest_speed, low=0.0)
+        self.subspace = checked_subspace("OptimalBlender", subspace, self.e_des, networks[0].hidden.in_features)
+        self.realism = finite_number(self, "realism", realism, low=0.0)
+        self._delta = self.delta_pos - self.terminal_margin
         self.library = library
         self.networks = networks
         self.network = networks[0]
@@ -245,6 +258,7 @@ class OptimalBlender(Block):
         self._w2 = [w["w2"] for w in weights]
         self._b2 = np.array([w["b2"] for w in weights])
         self._sign = 1.0 if self.e_des == 1 else -1.0
+        self._linear = LinearisedSolver(self._w1, self._b1, self._w2, self._b2, self._sign)
         self._z_target = math.log((CLIP_HIGH + self.margin) / (1.0 - CLIP_HIGH - self.margin))
         self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)
         self._pending: dict[str, Any] | None = None
@@ -264,8 +278,10 @@ class OptimalBlender(Block):
     def setup(self) -> None:
         # build every solver and resampling matrix a decision may need now, not in the middle of the loop
         spacing, n = self.knot_spacing, len(self.human)
-        for knots in range(1, len(range(spacing, n - 1, spacing)) + 2):
-            _solver(self.networks, self._key, knots, self.solver, self.time_limit_ms / 1e3, self.sharpness)
+        for m in [3 * k for k in range(1, len(range(spacing, n - 1, spacing)) + 2)]:
+            if self.solver == "linearised":
+                continue
+            _solver(self.networks, self._key, m, self.solver, self.time_limit_ms / 1e3, self.sharpness)
         for length in range(1, n + 1):
             resampling_matrix(length)
 
@@ -320,8 +336,10 @@ class OptimalBlender(Block):
         nearest, reference = int(self.nearest.value), int(self.reference.value)
         lib = self.library
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
-        length = max(self.end, int(lib.length[nearest]), int(lib.length[reference]))
-        if not at_rest:
+        # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
+        # is enough: the altered movement may end before the human's, having covered the same distance sooner
+        length = max(self.end, int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
+        if not at_rest and (self.e_des or self.end == 0):
             length = max(length, t + self.knot_spacing)
         length = min(length, len(self.human))
         predicted = np.zeros_like(self.human)
@@ -358,45 +376,36 @@ class OptimalBlender(Block):
         samples = np.arange(t, length)
         basis = np.stack([np.interp(samples, knots, e) for e in np.eye(len(knots))], axis=1)
         phi0, phi = basis[:, 0], basis[:, 1:] * _U_SCALE  # phi: samples per knot value in units of _U_SCALE
+        n = phi.shape[1]
         resample = resampling_matrix(length)
         base = np.concatenate([self.altered[:t], predicted[t:length] + phi0[:, None] * u_prev])
-        x0 = (resample @ base).T.reshape(-1)
-        a = np.kron(np.eye(3), resample[:, t:] @ phi)
-        gram = phi.T @ phi / _U_SCALE**2  # the cost Σ‖u‖² in units of _U_SCALE²
-        q = (phi.T @ phi0)[None, :] * u_prev[:, None] / _U_SCALE**2
-        cs = dt * phi.sum(axis=0)
-        g0 = dt * (
-            (self.altered[:t] - self.human[:t]).sum(axis=0) + phi0.sum() * u_prev - predicted[length:].sum(axis=0)
-        )
         reach = self.human[:t].sum(axis=0)
         if not np.linalg.norm(reach) > 0.0:
             reach = self.library.velocity[reference].sum(axis=0)
         direction = reach / max(np.linalg.norm(reach), 1e-12)
-        speed_rhs = self.end_speed - direction @ predicted[length - 1]
-        p = np.concatenate(
-            [
-                a.ravel(order="F"),
-                x0,
-                gram.ravel(order="F"),
-                q.ravel(),
-                cs,
-                g0,
-                _U_SCALE * direction,
-                [self._sign, self._z_target, speed_rhs, self.delta_pos - self.terminal_margin],
-            ]
-        )
-        return {
-            "n": phi.shape[1],
-            "p": p,
-            "a": a,
-            "x0": x0,
-            "g0": g0,
-            "cs": cs,
+        speed = np.zeros((3, n))
+        speed[:, -1] = _U_SCALE * direction  # the last knot's speed along the reach direction
+        # knots, axis-major: x = x0 + A w, cost wᵀ H w + 2 qᵀ w, gap g0 + C w, last speed dᵀ w
+        problem = {
+            "x0": (resample @ base).T.reshape(-1),
+            "A": np.kron(np.eye(3), resample[:, t:] @ phi),
+            "H": np.kron(np.eye(3), phi.T @ phi / _U_SCALE**2),  # the cost Σ‖u‖² in units of _U_SCALE²
+            "q": ((phi.T @ phi0)[None, :] * u_prev[:, None] / _U_SCALE**2).ravel(),
+            "C": np.kron(np.eye(3), dt * phi.sum(axis=0)),
+            "g0": dt
+            * ((self.altered[:t] - self.human[:t]).sum(axis=0) + phi0.sum() * u_prev - predicted[length:].sum(axis=0)),
+            "d": speed.ravel(),
+            "rhs": [self._sign, self._z_target, self.end_speed - direction @ predicted[length - 1], self._delta],
             "knots": knots[1:],
             "phi": phi,
             "phi0": phi0,
             "u_prev": u_prev,
         }
+        if self.subspace is not None:  # penalise the altered movement's distance from realistic movements
+            h, q = self.subspace.penalty(problem["A"], problem["x0"])
+            problem["H"] = problem["H"] + self.realism * h / _U_SCALE**2
+            problem["q"] = problem["q"] + self.realism * q / _U_SCALE**2
+        return problem
 
     def _initial_guess(
         self, problem: dict[str, Any], predicted: np.ndarray, reference: int, nearest: int
@@ -405,7 +414,7 @@ class OptimalBlender(Block):
         knots = problem["knots"]
         if self.end > 0:
             guess = self.plan[knots]
-        elif self.table is not None:
+        elif self.table is not None and self.solver != "linearised":
             c = self.table.lookup(nearest, reference)
             guess = (1.0 - c) * (self.library.velocity[reference, knots] - predicted[knots])
         else:
@@ -420,20 +429,25 @@ class OptimalBlender(Block):
 
     def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
         """Knots (None: fall back), multipliers and status of one solve."""
-        n, members = problem["n"], len(self.networks)
-        solver = _solver(self.networks, self._key, n, self.solver, self.time_limit_ms / 1e3, self.sharpness)
-        slack = max(self._z_target - self._sign * self._logit(problem["x0"] + problem["a"] @ w0), 0.0)
+        members, m = len(self.networks), len(w0)
+        if self.solver == "linearised":
+            w, status, _ = self._linear.solve(
+                problem, w0, self._z_target, self._z_clip, self._delta, self.delta_pos, self.time_limit_ms / 1e3
+            )
+            return w, np.zeros(members + 3), status
+        solver = _solver(self.networks, self._key, m, self.solver, self.time_limit_ms / 1e3, self.sharpness)
+        slack = max(self._z_target - self._sign * self._logit(problem["x0"] + problem["A"] @ w0), 0.0)
         if solver.deadline is not None:
             solver.deadline.start(self.time_limit_ms / 1e3)
         out = solver.function(
             x0=np.r_[w0, slack],
-            p=problem["p"],
-            lbx=np.r_[np.full(3 * n, -np.inf), 0.0],
+            p=np.concatenate([np.ravel(problem[k], order="F") for k in ("A", "x0", "H", "q", "C", "g0", "d", "rhs")]),
+            lbx=np.r_[np.full(m, -np.inf), 0.0],
             ubx=np.inf,
             lbg=np.r_[np.zeros(members), -np.inf, 0.0],
             ubg=np.r_[np.full(members, np.inf), 0.0, np.inf],
             lam_g0=self.multipliers[: members + 2],
-            lam_x0=np.r_[np.zeros(3 * n), self.multipliers[members + 2]],
+            lam_x0=np.r_[np.zeros(m), self.multipliers[members + 2]],
         )
         x = np.asarray(out["x"]).ravel()
         multipliers = np.r_[np.asarray(out["lam_g"]).ravel(), np.asarray(out["lam_x"]).ravel()[-1]]
@@ -442,8 +456,8 @@ class OptimalBlender(Block):
             return None, multipliers, "fallback"
         if solver.function.stats()["success"]:
             return w, multipliers, "converged"
-        z = self._sign * self._logit(problem["x0"] + problem["a"] @ w)
-        if z > self._z_clip and np.linalg.norm(problem["g0"] + w.reshape(3, -1) @ problem["cs"]) <= self.delta_pos:
+        z = self._sign * self._logit(problem["x0"] + problem["A"] @ w)
+        if z > self._z_clip and np.linalg.norm(problem["g0"] + problem["C"] @ w) <= self.delta_pos:
             return w, multipliers, "accepted"
         return None, multipliers, "fallback"
 

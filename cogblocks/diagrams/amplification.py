@@ -8,7 +8,7 @@ validation figures on the held-out no-fear movements of the synthetic library.""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -29,7 +29,13 @@ from cogblocks.amplification.judges import BLENDER_ENSEMBLE, Judges, load_ensemb
 from cogblocks.amplification.l2 import L2Amplification
 from cogblocks.blocks import Playback, Probe
 from cogblocks.data.reach import ReachLibrary
-from cogblocks.diagrams.amplification_setup import AmplificationSetup, amplification_judges, amplification_setup
+from cogblocks.diagrams.amplification_setup import (
+    OPTIMISED,
+    AmplificationSetup,
+    amplification_judges,
+    amplification_setup,
+    optimised_subspace,
+)
 from cogblocks.sensing import KalmanEstimator
 from cogblocks.sim import Block, Diagram, Simulator
 from cogblocks.sim.params import finite_number, one_of
@@ -171,6 +177,7 @@ def run_amplification(
     judges: Judges | None = None,
     blender_networks: Sequence[EncoderNet] | None = None,
     corrector: CorrectorNet | None = None,
+    optimised: Mapping[str, Any] | None = None,
 ) -> dict[str, dict[str, Any]]:
     """Replay every validation movement that does not encode ``e_des`` through the online architecture.
 
@@ -182,8 +189,8 @@ def run_amplification(
     ----------
     variants : sequence of {"blend", "blend_rl", "optimised"}
         Blending alone, blending with the RL corrector, and the optimisation-based blending
-        (:class:`~cogblocks.amplification.OptimalBlender`, without corrector; not run
-        unless asked).
+        (:class:`~cogblocks.amplification.OptimalBlender` configured as :data:`OPTIMISED`, with the
+        setup's subspace; without corrector).
     seed : int, optional
         Seed of the 70/30 split; by default the encoder's own validation split (see
         :func:`amplification_setup`).
@@ -202,6 +209,9 @@ def run_amplification(
         ``encoder_ensemble.pt``.
     corrector : CorrectorNet, optional
         The RL corrector's network; the shipped one by default.
+    optimised : mapping, optional
+        Keyword arguments of the optimised blender instead of :data:`OPTIMISED` (without
+        ``components``: the subspace is the setup's).
 
     Returns
     -------
@@ -237,7 +247,7 @@ def run_amplification(
     for variant in variants:
         encoded, distances, solve_ms, fallbacks, altered = [], [], [], 0, []
         for index in humans:
-            blender = _optimal_blender(setup, blender_networks) if variant == "optimised" else None
+            blender = _optimal_blender(setup, blender_networks, optimised) if variant == "optimised" else None
             d = pop_amplification(
                 (setup.library.velocity[index], setup.library.position[index]),
                 setup.movements,
@@ -284,11 +294,16 @@ def _judged(judges: Judges, altered: list[np.ndarray], e_des: int) -> dict[str, 
     }
 
 
-def _optimal_blender(setup: AmplificationSetup, networks: Sequence[EncoderNet]) -> Block:
+def _optimal_blender(
+    setup: AmplificationSetup, networks: Sequence[EncoderNet], options: Mapping[str, Any] | None = None
+) -> Block:
     # imported here: casadi (about 0.1 s to import) is loaded only when the optimised variant is asked for
     from cogblocks.amplification import OptimalBlender
 
-    return OptimalBlender(setup.movements, list(networks), setup.table, e_des=setup.e_des)
+    subspace = setup.subspace if setup.subspace is not None else optimised_subspace(setup.movements, setup.e_des)
+    if options is None:
+        options = {k: v for k, v in OPTIMISED.items() if k != "components"}
+    return OptimalBlender(setup.movements, list(networks), setup.table, e_des=setup.e_des, subspace=subspace, **options)
 
 
 def plot_amplification(path: str, index: int | None = None, variant: str = "blend", seed: int | None = None) -> None:

@@ -11,9 +11,16 @@ import numpy as np
 from cogblocks.amplification import EncoderNet, SolutionTable, load_encoder, solution_table
 from cogblocks.amplification.judges import JUDGE_ENSEMBLE, EncoderEnsemble, Judges, KinematicJudge, load_ensemble
 from cogblocks.amplification.solution import library_fingerprint
+from cogblocks.amplification.subspace import MovementSubspace, movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
-__all__ = ["AmplificationSetup", "amplification_judges", "amplification_setup"]
+__all__ = ["OPTIMISED", "AmplificationSetup", "amplification_judges", "amplification_setup", "optimised_subspace"]
+
+#: How the validation runs the optimised blender (chosen on an inner split of the training part, see
+#: docs/pop-amplification.md): the sequential-QP solver on the exact networks, a 3.5 ms CPU limit per
+#: solve, plans for ε̂ ≥ 0.99 (≤ 0.01), and a penalty (weight ``realism``) on the altered movement's
+#: distance from the subspace of the desired class's ``components`` leading principal directions.
+OPTIMISED = {"solver": "linearised", "time_limit_ms": 3.5, "realism": 1000.0, "margin": 0.09, "components": 12}
 
 
 @dataclass(frozen=True)
@@ -33,6 +40,9 @@ class AmplificationSetup:
     table : SolutionTable
         w̃ on ``movements``.
     e_des : int
+    subspace : MovementSubspace, optional
+        The realistic directions of the optimised blender (:func:`movement_subspace` of ``movements``
+        for ``e_des``); built by :func:`optimised_subspace` when absent.
     """
 
     library: ReachLibrary
@@ -42,6 +52,7 @@ class AmplificationSetup:
     encoder: EncoderNet
     table: SolutionTable
     e_des: int
+    subspace: MovementSubspace | None = None
 
     @property
     def humans(self) -> np.ndarray:
@@ -77,7 +88,18 @@ def amplification_setup(seed: int | None = None, e_des: int = 1) -> Amplificatio
     train, val = library.split(float(meta["val_fraction"]), split_seed)
     movements = library.subset(train)
     table = solution_table(encoder, movements, e_des)
-    return AmplificationSetup(library, train, val, movements, encoder, table, e_des)
+    return AmplificationSetup(
+        library, train, val, movements, encoder, table, e_des, optimised_subspace(movements, e_des)
+    )
+
+
+def optimised_subspace(movements: ReachLibrary, e_des: int) -> MovementSubspace:
+    """The optimised blender's subspace: the PCA of ``movements`` of class ``e_des`` (:data:`OPTIMISED`).
+
+    A class with fewer movements than ``OPTIMISED["components"]`` keeps as many directions as it has movements.
+    """
+    count = int(np.sum(movements.fear == bool(e_des)))
+    return movement_subspace(movements, e_des, max(1, min(int(OPTIMISED["components"]), count)))
 
 
 @lru_cache(maxsize=1)

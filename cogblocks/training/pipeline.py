@@ -33,7 +33,7 @@ from cogblocks.data.features import classifier_inputs
 from cogblocks.data.loaders import load_csv, load_npz, load_velocity_data_mat
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.diagrams.amplification import run_amplification
-from cogblocks.diagrams.amplification_setup import AmplificationSetup
+from cogblocks.diagrams.amplification_setup import AmplificationSetup, optimised_subspace
 from cogblocks.training.amplification_env import record_episodes
 from cogblocks.training.corrector import CorrectorConfig, train
 from cogblocks.training.encoder import EncoderConfig, cross_validate
@@ -93,7 +93,10 @@ def run_pipeline(
         The movements, or a file for :func:`load_library`.
     out_dir : path-like
         Created if needed; receives ``encoder.pt``, ``encoder_ensemble.pt``, ``judges.pt``,
-        ``corrector.pt``, ``w_tilde_encode.npz``, ``w_tilde_remove.npz`` and ``report.json``.
+        ``corrector.pt``, ``w_tilde_encode.npz``, ``w_tilde_remove.npz``, the optimised blender's
+        subspaces ``subspace_encode.npz`` and ``subspace_remove.npz``
+        (:func:`cogblocks.amplification.subspace.load_subspace`) and
+        ``report.json``.
     seed : int
         Seeds the split, every network and the corrector's training.
     quick : bool
@@ -144,8 +147,10 @@ def run_pipeline(
     for name, e_des in DIRECTIONS.items():
         say(f"w̃ for '{name}' (e_des = {e_des})")
         table = solution_table(encoder, movements, e_des, cache_dir=None)
-        setups[name] = AmplificationSetup(library, train_idx, val_idx, movements, encoder, table, e_des)
+        subspace = optimised_subspace(movements, e_des)
+        setups[name] = AmplificationSetup(library, train_idx, val_idx, movements, encoder, table, e_des, subspace)
         np.savez_compressed(out / f"w_tilde_{name}.npz", **{k: getattr(table, k) for k in ("values", "rows", "cols")})
+        subspace.save(out / f"subspace_{name}.npz")
 
     episodes = corrector_episodes or (60 if quick else CorrectorConfig.episodes)
     say(f"RL corrector: {episodes} episodes")

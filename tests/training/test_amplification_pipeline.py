@@ -8,6 +8,7 @@ import torch
 
 from cogblocks.amplification import load_encoder
 from cogblocks.amplification.judges import load_ensemble
+from cogblocks.amplification.subspace import load_subspace
 from cogblocks.cli import main
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.loaders import DataFormatError, load_csv, load_npz, save_csv
@@ -79,6 +80,12 @@ def test_run_pipeline_on_a_renamed_library(library, tmp_path):
     accuracy = np.mean((encoder.predict(classifier_inputs(held_out)) > 0.5) == held_out.fear)
     assert report["encoder_held_out_accuracy"] == pytest.approx(accuracy)
     assert len(load_ensemble(out / "judges.pt")) == 5 and len(load_ensemble(out / "encoder_ensemble.pt")) == 1
+    # the optimised blender's subspaces: the PCA of the training part's movements of each direction's class
+    movements = library.subset(train)
+    for name, e_des in DIRECTIONS.items():
+        subspace = load_subspace(out / f"subspace_{name}.npz")
+        assert subspace.e_des == e_des
+        np.testing.assert_allclose(subspace.mean, classifier_inputs(movements)[movements.fear == bool(e_des)].mean(0))
     table = np.load(out / "w_tilde_remove.npz")
     assert set(table["rows"]) <= set(np.flatnonzero(library.subset(train).fear))  # e_des = 0: fear rows
     assert set(report["directions"]) == set(DIRECTIONS)

@@ -1,0 +1,228 @@
+"""A fast solver of the optimised blender's decision: sequential QPs on the exact ReLU networks.
+
+The encoder networks are piecewise linear in their inputs (ReLU): around a plan each network's
+logit is exactly affine until a hidden unit changes sign, and there is no curvature to compute.
+:class:`LinearisedSolver` linearises every network at the current plan (one product with the
+stacked first layer) and solves the QP of the convex cost with the linearised encoding constraints
+through its dual, a box-constrained QP in one variable per constraint (:func:`box_qp`); the
+terminal ball enters as tangent half-spaces added while the step lies outside it (cutting planes).
+A backtracking line search on the exact ℓ1 merit keeps the steps where the linearisation holds.
+casadi's SQP spends most of its time on the Hessian of the smoothed networks; this solver needs
+none and runs in NumPy.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+__all__ = ["LinearisedSolver", "box_qp"]
+
+_PENALTY = 1e3  # as the SQP's: weight of the encoding slack per logit unit
+
+
+def box_qp(m: np.ndarray, b: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The minimiser of ``½ λᵀ M λ − bᵀ λ`` over ``0 ≤ λ ≤ upper`` (M symmetric positive semidefinite, few variables).
+
+    A primal active-set method on the bounds: from ``λ = 0``, solve for the free variables with the
+    others at their bounds; step to that point or to the first bound in the way (which then holds),
+    and free the bound variable whose gradient most wants to leave its bound, until none does. Exact
+    in finitely many steps; for the 2–5 variables here, a few small solves. ``upper`` may hold ``inf``.
+    """
+    r = len(b)
+    ridge = 1e-12 * max(float(np.trace(m)), 1e-300)  # a semidefinite M: a nearly least-norm minimiser
+    mm = [[float(m[i, j]) + (ridge if i == j else 0.0) for j in range(r)] for i in range(r)]
+    bb, ub = [float(v) for v in b], [float(v) for v in upper]
+    lam, held = [0.0] * r, [True] * r  # pure Python: for so few variables NumPy's call overhead dominates
+    tol = 1e-10 * (1.0 + max(abs(v) for v in bb))
+    for _ in range(8 * r + 8):
+        free = [i for i in range(r) if not held[i]]
+        target = lam[:]
+        if free:
+            rhs = [bb[i] - sum(mm[i][j] * lam[j] for j in range(r) if held[j]) for i in free]
+            for i, v in zip(free, _solve([[mm[i][j] for j in free] for i in free], rhs), strict=True):
+                target[i] = v
+        direction = [t - v for t, v in zip(target, lam, strict=True)]
+        if max(abs(d) for d in direction) <= tol * (1.0 + max(abs(v) for v in lam)):
+            best, leave = tol, -1
+            for i in range(r):
+                if held[i]:
+                    grad = sum(mm[i][j] * lam[j] for j in range(r)) - bb[i]
+                    want = -grad if lam[i] <= 0.0 else grad  # > 0: leaving its bound lowers the objective
+                    if want > best:
+                        best, leave = want, i
+            if leave < 0:
+                break
+            held[leave] = False
+            continue
+        step, block = 1.0, -1
+        for i in free:
+            d = direction[i]
+            limit = -lam[i] / d if d < 0 else (ub[i] - lam[i]) / d if d > 0 else math.inf
+            if limit < step:
+                step, block = limit, i
+        lam = [min(max(v + step * d, 0.0), u) for v, d, u in zip(lam, direction, ub, strict=True)]
+        if block >= 0:
+            held[block] = True
+    return np.array(lam)
+
+
+def _solve(a: list[list[float]], y: list[float]) -> list[float]:
+    """``a x = y`` for a small dense system, Gaussian elimination with partial pivoting (in place)."""
+    n = len(y)
+    for k in range(n):
+        pivot = max(range(k, n), key=lambda i: abs(a[i][k]))
+        a[k], a[pivot], y[k], y[pivot] = a[pivot], a[k], y[pivot], y[k]
+        for i in range(k + 1, n):
+            f = a[i][k] / a[k][k]
+            for j in range(k, n):
+                a[i][j] -= f * a[k][j]
+            y[i] -= f * y[k]
+    x = [0.0] * n
+    for k in reversed(range(n)):
+        x[k] = (y[k] - sum(a[k][j] * x[j] for j in range(k + 1, n))) / a[k][k]
+    return x
+
+
+class LinearisedSolver:
+    """Sequential QPs with linearised ReLU networks (see the module docstring).
+
+    Parameters
+    ----------
+    w1, b1 : numpy.ndarray
+        The members' first layers stacked, input normalisation folded in: (members·hidden, inputs).
+    w2, b2 : sequence of numpy.ndarray, numpy.ndarray
+        Each member's output weights (hidden,) and biases (members,).
+    sign : float
+        +1 for ``e_des = 1`` (logits must be high), −1 for ``e_des = 0``.
+    proximal : float
+        Weight of ``‖w − w_k‖²`` added to each QP relative to the cost's mean curvature: keeps a step
+        near the region where the linearisation is exact.
+    """
+
+    def __init__(self, w1: np.ndarray, b1: np.ndarray, w2: list[np.ndarray], b2: np.ndarray, sign: float,
+                 proximal: float = 0.1) -> None:  # fmt: skip
+        self.w1, self.b1, self.sign, self.proximal = w1, b1, sign, proximal
+        self.w2 = np.zeros((len(w2), len(b1)))
+        for k, w in enumerate(w2):
+            self.w2[k, k * len(w) : (k + 1) * len(w)] = w
+        self.b2 = np.asarray(b2, dtype=np.float64)
+
+    def logits(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every member's logit at input ``x`` and its gradient (members, inputs)."""
+        pre = self.w1 @ x + self.b1
+        active = pre > 0.0
+        return self.w2 @ np.where(active, pre, 0.0) + self.b2, (self.w2 * active) @ self.w1
+
+    def _merit(self, p: dict[str, Any], w: np.ndarray, z_target: float, delta: float) -> tuple[float, tuple]:
+        """The exact ℓ1 merit of ``w``: cost plus ρ per logit unit short of ``z_target`` and per mm beyond ``delta``.
+
+        Also returns the members' logits and gradients at ``w`` (:meth:`logits`), for the next iteration.
+        """
+        linear = self.logits(p["x0"] + p["A"] @ w)
+        excess = max(float(np.linalg.norm(p["g0"] + p["C"] @ w)) - delta, 0.0)
+        cost = float(w @ p["H"] @ w + 2.0 * p["q"] @ w)
+        short = float(np.maximum(z_target - self.sign * linear[0], 0.0).sum())
+        return cost + _PENALTY * (short + excess), linear
+
+    def _line_search(
+        self, p: dict[str, Any], w: np.ndarray, step: np.ndarray, merit: float, z_target: float, delta: float
+    ) -> tuple[np.ndarray, tuple, float, float]:
+        """The first ``w + α (step − w)``, α = 1, ½, ¼, ⅛, below ``merit`` (else the lowest).
+
+        Returns the point, its logits and gradients, the largest change of a variable, and its merit.
+        """
+        direction, best = step - w, None
+        for alpha in (1.0, 0.5, 0.25, 0.125):
+            trial = w + alpha * direction
+            value, linear = self._merit(p, trial, z_target, delta)
+            if best is None or value < best[3]:
+                best = (trial, linear, alpha * float(np.abs(direction).max()), value)
+            if value < merit:
+                break
+        return best
+
+    @staticmethod
+    def _qp_step(
+        rows: np.ndarray, h: np.ndarray, hq: np.ndarray, hg: np.ndarray, upper: np.ndarray, members: int
+    ) -> np.ndarray:
+        """The QP's minimiser ``H⁻¹(Gᵀλ/2 − q)`` from its dual; the rows after the members' are tried inactive first."""
+        dual, linear = 0.5 * rows @ hg, rows @ hq + h
+        lam = np.zeros(len(h))
+        lam[:members] = box_qp(dual[:members, :members], linear[:members], upper[:members])
+        step = hg @ lam / 2.0 - hq
+        if np.any(rows[members:] @ step < h[members:] - 1e-9):
+            lam = box_qp(dual, linear, upper)
+            step = hg @ lam / 2.0 - hq
+        return step
+
+    def solve(
+        self,
+        p: dict[str, Any],
+        w0: np.ndarray,
+        z_target: float,
+        z_clip: float,
+        delta: float,
+        delta_pos: float,
+        time_limit: float,
+        max_iter: int = 10,
+    ) -> tuple[np.ndarray | None, str, int]:
+        """Plan variables (None: none acceptable), status and iterations of one decision.
+
+        ``p`` holds ``A, x0, H, q, C, g0, d`` and ``rhs`` as the SQP's parameters (classifier input
+        ``x0 + A w``, cost ``wᵀHw + 2qᵀw``, gap ``g0 + C w``, last speed ``dᵀw ≥ rhs[2]``). Each
+        iteration solves ``min wᵀHw + 2qᵀw + μ‖w − w_k‖² + ρ Σ s_j`` subject to the members'
+        linearised encoding constraints ``sign·z_j ≥ z_target`` (slack ``s_j`` each) and the speed
+        constraint, through its dual (:func:`box_qp`), adding up to two tangent planes of the ball
+        ``‖gap‖ ≤ delta`` while the step lies outside it; then a backtracking line search on the
+        exact ℓ1 merit. An iterate is acceptable when every exact network is beyond ``z_clip`` and
+        the gap within ``delta_pos``; the cheapest acceptable iterate is returned, ``"converged"``
+        once a step is small (or no cheaper) and meets ``z_target``, otherwise ``"accepted"``; a
+        fixed point short of ``z_clip`` within ``delta_pos`` is returned as ``"converged"`` too (as
+        close as the plan can get, like the SQP's exact penalty). ``time_limit`` (s of CPU time)
+        stops it before an iteration predicted to end past it, after at least one iteration.
+        """
+        start = previous = time.thread_time()
+        a, c, g0 = p["A"], p["C"], p["g0"]
+        w = np.asarray(w0, dtype=np.float64)
+        m, members = len(w), len(self.b2)
+        mu = self.proximal * max(np.trace(p["H"]) / m, 1e-12)
+        factor = cho_factor(p["H"] + mu * np.eye(m))
+        upper0 = np.r_[np.full(members, _PENALTY), np.inf]
+        best, best_cost, status, done = None, np.inf, "fallback", 0
+        merit, (z, g) = self._merit(p, w, z_target, delta)
+        while done < max_iter:
+            done += 1
+            # rows G w ≥ h: encoding (linearised at w), speed; then tangents of the terminal ball as needed
+            rows = np.vstack([self.sign * (g @ a), p["d"]])
+            h = np.r_[z_target - self.sign * z + rows[:members] @ w, p["rhs"][2]]
+            upper, hq, hg = upper0, cho_solve(factor, p["q"] - mu * w), cho_solve(factor, rows.T)
+            step = self._qp_step(rows, h, hq, hg, upper, members)
+            for _ in range(2):  # cutting planes: a tangent of the ball at the new gap while it lies outside
+                outside = g0 + c @ step
+                if np.linalg.norm(outside) <= delta * 1.001:
+                    break
+                normal = outside / np.linalg.norm(outside)
+                rows, h = np.vstack([rows, -normal @ c]), np.r_[h, normal @ g0 - delta]
+                hg, upper = np.c_[hg, cho_solve(factor, -c.T @ normal)], np.r_[upper, np.inf]
+                step = self._qp_step(rows, h, hq, hg, upper, members)
+            w, (z, g), moved, merit = self._line_search(p, w, step, merit, z_target, delta)
+            reached = float((self.sign * z).min())
+            cost = float(w @ p["H"] @ w + 2.0 * p["q"] @ w)
+            within = np.linalg.norm(g0 + c @ w) <= delta_pos
+            if reached > z_clip and within and cost < best_cost:
+                improved = cost < best_cost - 1e-3 * abs(best_cost)
+                best, best_cost = w.copy(), cost
+                # a small step, or no better plan any more, meeting the planned target: stop here
+                status = "converged" if reached >= z_target - 1e-6 and (moved < 1e-2 or not improved) else "accepted"
+            if best is None and within and moved < 1e-2:
+                best, status = w.copy(), "converged"  # a fixed point short of the threshold: as close as it gets
+            now = time.thread_time()
+            last, previous = now - previous, now  # the next iteration is predicted to take as long as this one
+            if status == "converged" or now - start + last > time_limit:
+                break
+        return best, status, done

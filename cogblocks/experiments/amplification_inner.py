@@ -1,0 +1,85 @@
+"""The inner split on which the optimised blender's settings were chosen, never the held-out movements.
+
+Usage::
+
+    python -m cogblocks.experiments.amplification_inner --e-des 1 --limit 30 [--components 12]
+        [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised]
+
+The training part of the shipped encoder's split is split again, seeded and stratified
+(``ReachLibrary.split(0.3, 100)``); w̃ and the realism subspace are computed on the inner training
+part, and the first ``limit`` inner movements that do not encode ``e_des`` are replayed through the
+optimised blender (the blender ensemble, as ``cogblocks run amplification``) and scored by the
+shipped judges. The inner movements were in the training data of the networks and judges, so the
+shares only rank settings (docs/pop-amplification.md, "Realistic plans"). Prints one JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+from typing import Any
+
+import torch
+
+from cogblocks.amplification import solution_table
+from cogblocks.amplification.judges import BLENDER_ENSEMBLE, load_ensemble
+from cogblocks.amplification.subspace import movement_subspace
+from cogblocks.diagrams.amplification import run_amplification
+from cogblocks.diagrams.amplification_setup import (
+    OPTIMISED,
+    AmplificationSetup,
+    amplification_judges,
+    amplification_setup,
+)
+
+__all__ = ["INNER_SEED", "evaluate", "inner_setup", "main"]
+
+INNER_SEED = 100
+
+
+def inner_setup(
+    e_des: int, components: int = int(OPTIMISED["components"]), seed: int = INNER_SEED
+) -> AmplificationSetup:
+    """The inner split of the shipped training part: ``library`` is the training part, ``val`` its inner 30 %."""
+    outer = amplification_setup(None, 1)
+    library = outer.movements
+    train, val = library.split(0.3, seed)
+    movements = library.subset(train)
+    table = solution_table(outer.encoder, movements, e_des)
+    subspace = movement_subspace(movements, e_des, components)
+    return AmplificationSetup(library, train, val, movements, outer.encoder, table, e_des, subspace)
+
+
+def evaluate(e_des: int, limit: int, components: int, **options: Any) -> dict[str, Any]:
+    """The optimised row of :func:`run_amplification` on the first ``limit`` inner movements, with ``options``."""
+    setup = inner_setup(e_des, components)
+    networks = [setup.encoder, *load_ensemble(BLENDER_ENSEMBLE)]
+    result = run_amplification(
+        ("optimised",), limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
+        blender_networks=networks, optimised=options,
+    )  # fmt: skip
+    return result["optimised"]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point: print the inner-split row of one setting as JSON."""
+    defaults = {k: v for k, v in OPTIMISED.items() if k != "components"}
+    parser = argparse.ArgumentParser(prog="python -m cogblocks.experiments.amplification_inner", description=__doc__)
+    parser.add_argument("--e-des", type=int, choices=(0, 1), default=1)
+    parser.add_argument("--limit", type=int, default=30, help="inner movements replayed (default 30)")
+    parser.add_argument("--components", type=int, default=int(OPTIMISED["components"]))
+    parser.add_argument("--realism", type=float, default=defaults["realism"])
+    parser.add_argument("--margin", type=float, default=defaults["margin"])
+    parser.add_argument("--time-limit-ms", type=float, default=defaults["time_limit_ms"])
+    parser.add_argument("--solver", default=defaults["solver"], choices=("linearised", "sqpmethod", "ipopt"))
+    args = parser.parse_args(argv)
+    torch.set_num_threads(1)
+    options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms}
+    row = evaluate(args.e_des, args.limit, args.components, solver=args.solver, **options)
+    print(json.dumps({"e_des": args.e_des, "components": args.components, **options, "solver": args.solver, **row}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,147 @@
+"""The optimised blender's realism subspace and its sequential-QP solver on the exact ReLU networks."""
+
+import numpy as np
+import pytest
+import torch
+from scipy.optimize import minimize
+
+from cogblocks.amplification import NoCorrection, OptimalBlender
+from cogblocks.amplification.encoder import movement_length
+from cogblocks.amplification.judges import BLENDER_ENSEMBLE, load_ensemble
+from cogblocks.amplification.linearised import box_qp
+from cogblocks.amplification.subspace import load_subspace, movement_subspace
+from cogblocks.data.features import classifier_inputs, resample_movement
+from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, pop_amplification
+from cogblocks.diagrams.amplification_setup import OPTIMISED
+from cogblocks.sim import Simulator
+
+torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="module")
+def setup():
+    return amplification_setup()
+
+
+@pytest.fixture(scope="module")
+def networks(setup):
+    return [setup.encoder, *load_ensemble(BLENDER_ENSEMBLE)]
+
+
+def test_subspace_is_the_pca_of_the_class(setup, tmp_path):
+    lib = setup.movements
+    sub = movement_subspace(lib, 0, 5)
+    inputs = classifier_inputs(lib)[~lib.fear]
+    np.testing.assert_allclose(sub.mean, inputs.mean(axis=0), atol=1e-9)
+    np.testing.assert_allclose(sub.components @ sub.components.T, np.eye(5), atol=1e-9)
+    # the leading direction maximises the variance: no other unit direction of the class explains more
+    centred = inputs - sub.mean
+    first = np.var(centred @ sub.components[0])
+    for d in np.random.default_rng(0).normal(size=(20, 60)):
+        assert np.var(centred @ (d / np.linalg.norm(d))) <= first + 1e-9
+    total = (centred**2).sum()
+    assert sub.explained == pytest.approx(((centred @ sub.components.T) ** 2).sum() / total)
+    # residual: zero in the subspace, the norm of an orthogonal offset outside it
+    inside = sub.mean + np.array([3.0, -2.0, 1.0, 0.5, 7.0]) @ sub.components
+    orthogonal = np.linalg.svd(np.vstack([sub.components, np.eye(60)[:1]]))[2][-1]
+    assert sub.residual(inside) == pytest.approx(0.0, abs=1e-9)
+    assert sub.residual(inside + 4.0 * orthogonal) == pytest.approx(4.0)
+    sub.save(tmp_path / "s.npz")
+    again = load_subspace(tmp_path / "s.npz")
+    np.testing.assert_array_equal(again.components, sub.components)
+    assert again.e_des == 0 and again.explained == sub.explained
+
+
+def test_penalty_is_the_squared_residual(setup):
+    sub = movement_subspace(setup.movements, 1, 8)
+    rng = np.random.default_rng(1)
+    a, x0 = rng.normal(size=(60, 12)) * 50.0, sub.mean + rng.normal(size=60) * 100.0
+    h, q = sub.penalty(a, x0)
+    for w in rng.normal(size=(5, 12)):
+        assert w @ h @ w + 2 * q @ w + sub.residual(x0) ** 2 == pytest.approx(sub.residual(x0 + a @ w) ** 2)
+
+
+def test_subspace_bad_input(setup, tmp_path):
+    with pytest.raises(ValueError, match="at least as many movements of class e_des=1, the library has"):
+        movement_subspace(setup.movements, 1, 10_000)
+    with pytest.raises(ValueError, match="e_des"):
+        movement_subspace(setup.movements, 2)
+    np.savez(tmp_path / "bad.npz", mean=np.zeros(60))
+    with pytest.raises(ValueError, match="bad.npz: not a MovementSubspace file .missing components, e_des, explained"):
+        load_subspace(tmp_path / "bad.npz")
+    with pytest.raises(ValueError, match="subspace must be a MovementSubspace of 60 inputs for e_des=0"):
+        OptimalBlender(setup.movements, setup.encoder, e_des=0, subspace=movement_subspace(setup.movements, 1))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_box_qp_is_the_minimiser(seed):
+    rng = np.random.default_rng(seed)
+    r = int(rng.integers(1, 6))
+    g = rng.normal(size=(r, r + int(rng.integers(0, 3))))
+    m, b = g @ g.T, rng.normal(size=r) * 3.0
+    upper = np.where(rng.random(r) < 0.5, rng.random(r) * 2.0, np.inf)
+    lam = box_qp(m, b, upper)
+    assert np.all(lam >= 0.0) and np.all(lam <= upper)
+    reference = minimize(
+        lambda x: 0.5 * x @ m @ x - b @ x, np.zeros(r), jac=lambda x: m @ x - b, method="L-BFGS-B",
+        bounds=[(0.0, u if np.isfinite(u) else None) for u in upper], options={"ftol": 1e-15, "gtol": 1e-12},
+    )  # fmt: skip
+    assert 0.5 * lam @ m @ lam - b @ lam <= reference.fun + 1e-7 * (1.0 + abs(reference.fun))
+
+
+def test_linearised_logits_are_the_networks(setup, networks):
+    blender = OptimalBlender(setup.movements, networks, solver="linearised")
+    solver = blender._linear
+    x = setup.encoder.mean.double().numpy() + np.random.default_rng(2).normal(size=60) * 200.0
+    z, grad = solver.logits(x)
+    xt = torch.tensor(x, dtype=torch.float32, requires_grad=True)
+    for k, net in enumerate(networks):
+        logit = net.out(torch.relu(net.preactivation(xt))).squeeze()
+        (expected,) = torch.autograd.grad(logit, xt)
+        assert z[k] == pytest.approx(logit.item(), abs=1e-4)
+        np.testing.assert_allclose(grad[k], expected.numpy(), rtol=1e-4, atol=1e-6)
+
+
+def replay(setup, blender, human):
+    lib = setup.library
+    d = pop_amplification(
+        (lib.velocity[human], lib.position[human]), setup.movements, table=setup.table, encoder=setup.encoder,
+        corrector=NoCorrection(), blending=blender, e_des=setup.e_des,
+    )  # fmt: skip
+    return Simulator(d).run(n_steps=lib.max_len)
+
+
+@pytest.mark.parametrize("e_des", [1, 0])
+def test_realistic_plan_meets_every_member(e_des, networks):
+    setup = amplification_setup(None, e_des)
+    options = {**OPTIMISED, "time_limit_ms": 1000.0}
+    options.pop("components")
+    blender = OptimalBlender(setup.movements, networks, setup.table, e_des=e_des, subspace=setup.subspace, **options)
+    human = int(setup.humans[1])
+    trace = replay(setup, blender, human)
+    altered = trace["v_a"]
+    inputs = resample_movement(altered, movement_length(altered, 1.0))
+    eps = np.array([float(n.predict(inputs)) for n in networks])  # an independent (torch) forward pass
+    assert np.all(eps > 0.9) if e_des == 1 else np.all(eps < 0.1), eps
+    assert np.linalg.norm(trace["p_a"][-1] - trace["p_h"][-1]) <= DELTA_POS_MM
+    assert blender.fallbacks == 0 and "fallback" not in {r.status for r in blender.results}
+    # the penalty keeps the altered movement nearer realistic movements of the class than the bare plan
+    bare = OptimalBlender(setup.movements, networks, setup.table, e_des=e_des, solver="linearised", time_limit_ms=1e3)
+    bare_altered = replay(setup, bare, human)["v_a"]
+    bare_inputs = resample_movement(bare_altered, movement_length(bare_altered, 1.0))
+    assert setup.subspace.residual(inputs) < setup.subspace.residual(bare_inputs)
+
+
+def test_out_of_time_falls_back_to_the_table(setup, networks):
+    blender = OptimalBlender(
+        setup.movements, networks, setup.table, subspace=setup.subspace, solver="linearised", time_limit_ms=1e-6
+    )
+    human = int(setup.humans[0])
+    trace = replay(setup, blender, human)
+    statuses = [r.status for r in blender.results]
+    # one iteration always runs; an out-of-time decision keeps a plan only if it is acceptable
+    assert blender.fallbacks == statuses.count("fallback")
+    for r in blender.results:
+        if r.status == "accepted":
+            assert r.eps > 0.9 and r.distance_mm <= DELTA_POS_MM
+    assert np.all(np.isfinite(trace["v_a"]))

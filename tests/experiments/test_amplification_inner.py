@@ -1,0 +1,31 @@
+"""The inner split the optimised blender was tuned on holds no held-out movement."""
+
+import json
+
+import numpy as np
+import torch
+
+from cogblocks.diagrams.amplification import amplification_setup
+from cogblocks.experiments.amplification_inner import evaluate, inner_setup, main
+
+torch.set_num_threads(1)
+
+
+def test_inner_split_lies_in_the_training_part():
+    outer = amplification_setup(None, 1)
+    inner = inner_setup(0, components=5)
+    # the inner library is the outer training part: every inner movement is a training movement
+    np.testing.assert_array_equal(inner.library.velocity, outer.library.velocity[outer.train])
+    replayed = inner.library.velocity[inner.humans]
+    held_out = outer.library.velocity[outer.val]
+    assert not any(np.array_equal(r, h) for r in replayed for h in held_out)
+    assert np.all(inner.library.fear[inner.humans]) and len(inner.subspace) == 5 and inner.subspace.e_des == 0
+    assert set(inner.table.rows) <= set(np.flatnonzero(inner.movements.fear))  # e_des = 0: fear rows
+
+
+def test_evaluate_and_command(capsys):
+    row = evaluate(1, 1, 12, solver="linearised", realism=1000.0, margin=0.09, time_limit_ms=3.5)
+    assert row["n"] == 1 and set(row["judges"]) == {"ensemble", "kinematic"} and row["decisions"] > 0
+    assert main(["--e-des", "1", "--limit", "1"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["e_des"] == 1 and printed["components"] == 12 and printed["n"] == 1
