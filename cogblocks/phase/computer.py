@@ -66,9 +66,16 @@ class PhaseComputer(Block):
         Smallest reference distance of the jump rule, in mm (>= 0): noise alone must not trigger it.
     velocity_weight : float
         ``τ`` in s (>= 0; 0.01 s by default).
+    extrapolate : float
+        Longest frozen stretch in s (>= 0) over which the phase is extrapolated (0.5 s by default).
 
     Notes
     -----
+    A position equal to the last one (a frozen tracker: real motion never repeats a sample exactly)
+    is not searched: the phase advances at the reference's mean speed, ``2π dt / T`` per tick, for
+    up to ``extrapolate`` seconds, then holds; the next moving sample is searched afresh (a full
+    search, as after any jump).
+
     Bad data policy: a tick with a non-finite or implausible (beyond 1 km, or 1 km/s) position or velocity
     holds the last phase; so does a tick whose nearest reference row is not finite (an implausible row
     overflows to an infinite distance and is never the nearest).
@@ -82,6 +89,7 @@ class PhaseComputer(Block):
         jump_factor: float = 3.0,
         distance_floor: float = 5.0,
         velocity_weight: float = 0.01,
+        extrapolate: float = 0.5,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -90,6 +98,7 @@ class PhaseComputer(Block):
         self.jump_factor = finite_number(self, "jump_factor", jump_factor, low=1.0, low_open=True)
         self.distance_floor = finite_number(self, "distance_floor", distance_floor, low=0.0)
         self.velocity_weight = finite_number(self, "velocity_weight", velocity_weight, low=0.0)
+        self.extrapolate = finite_number(self, "extrapolate", extrapolate, low=0.0)
         self.add_input("p", POSITION)
         self.add_input("v", VELOCITY)
         self.add_input("positions", Signal(shape=None, unit="mm"))
@@ -102,7 +111,10 @@ class PhaseComputer(Block):
         self.add_state("index", -1)  # i*(k-1) on the reference numbered ref_count; -1: none
         self.add_state("ref_count", 0)
         self.add_state("full_distance", 0.0)
+        self.add_state("last_p", np.full(3, np.nan))
+        self.add_state("frozen", 0)  # ticks the position has been repeated exactly
         self._next = (-1, 0, 0.0)
+        self._next_frozen = 0
 
     def setup(self) -> None:
         shape = self.positions.spec.shape
@@ -127,6 +139,13 @@ class PhaseComputer(Block):
             return
         m = int(self.length.value)
         duration = float(self.duration.value)
+        self._next_frozen = 0
+        if np.array_equal(self.p.value, self.last_p) and 0.0 < duration < math.inf and self.index >= 0:
+            # a frozen sensor: the hand moves on at the reference's mean speed, for at most `extrapolate` s
+            self._next_frozen = self.frozen + 1
+            if self._next_frozen * self.dt <= self.extrapolate:
+                self.theta.value[...] = (float(self.theta.value) + TWO_PI * self.dt / duration) % TWO_PI
+            return
         # the warm window: the phase covered in `window` seconds, in grid points (NaN fails the test)
         w = math.ceil(m * self.window / duration) if 0.0 < duration < math.inf else m
         if self.search == "warm" and self.index >= 0 and count == self.ref_count and 2 * w + 1 < m:
@@ -154,3 +173,6 @@ class PhaseComputer(Block):
 
     def update(self, k: int) -> None:
         self.index, self.ref_count, self.full_distance = self._next
+        self.frozen = self._next_frozen
+        if plausible(self.p.value):
+            self.last_p[...] = self.p.value
