@@ -90,6 +90,7 @@ class PhaseComputer(Block):
         distance_floor: float = 5.0,
         velocity_weight: float = 0.01,
         extrapolate: float = 0.5,
+        amplitude_range: float = 1.3,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -99,6 +100,7 @@ class PhaseComputer(Block):
         self.distance_floor = finite_number(self, "distance_floor", distance_floor, low=0.0)
         self.velocity_weight = finite_number(self, "velocity_weight", velocity_weight, low=0.0)
         self.extrapolate = finite_number(self, "extrapolate", extrapolate, low=0.0)
+        self.amplitude_range = finite_number(self, "amplitude_range", amplitude_range, low=1.0)
         self.add_input("p", POSITION)
         self.add_input("v", VELOCITY)
         self.add_input("positions", Signal(shape=None, unit="mm"))
@@ -125,12 +127,20 @@ class PhaseComputer(Block):
             )
         self._tau2 = self.velocity_weight**2
 
-    def _squared_distance(self, rows: Any) -> np.ndarray:
-        dp = self.positions.value[rows] - self.p.value
-        dv = self.velocities.value[rows] - self.v.value
+    def _squared_distance(self, rows: Any, m: int) -> np.ndarray:
         # a corrupt reference row overflows to inf (never the nearest) or gives NaN (checked by the caller)
         with np.errstate(over="ignore", invalid="ignore"):
-            return np.einsum("ij,ij->i", dp, dp) + self._tau2 * np.einsum("ij,ij->i", dv, dv)
+            centre = self.positions.value[:m].mean(axis=0)
+            g = self.positions.value[rows] - centre
+            gv = self.velocities.value[rows]
+            a, v = self.p.value - centre, self.v.value
+            tau2 = self._tau2
+            # ‖a − s g‖² + τ²‖v − s ġ‖² = A − 2 s B + s² C, at the best amplitude s within the allowed range
+            b = g @ a + tau2 * (gv @ v)
+            c = np.einsum("ij,ij->i", g, g) + tau2 * np.einsum("ij,ij->i", gv, gv)
+            r = self.amplitude_range
+            s = np.clip(b / np.where(c > 0.0, c, 1.0), 1.0 / r, r)
+            return (a @ a + tau2 * (v @ v)) - 2.0 * s * b + s * s * c
 
     def output(self, k: int) -> None:
         self._next = (self.index, self.ref_count, self.full_distance)
@@ -150,13 +160,13 @@ class PhaseComputer(Block):
         w = math.ceil(m * self.window / duration) if 0.0 < duration < math.inf else m
         if self.search == "warm" and self.index >= 0 and count == self.ref_count and 2 * w + 1 < m:
             rows = (self.index + np.arange(-w, w + 1)) % m
-            d2 = self._squared_distance(rows)
+            d2 = self._squared_distance(rows, m)
             j = int(np.argmin(d2))
             limit = self.jump_factor * max(self.full_distance, self.distance_floor)
             if 0 < j < 2 * w and d2[j] <= limit * limit:
                 self._emit(int(rows[j]), m, count, self.full_distance, d2[j - 1 : j + 2])
                 return
-        d2 = self._squared_distance(slice(0, m))
+        d2 = self._squared_distance(slice(0, m), m)
         i = int(np.argmin(d2))
         if math.isfinite(d2[i]):  # NaN (argmin's pick when present) or all-inf: a corrupt reference, hold
             self._emit(i, m, count, math.sqrt(d2[i]), d2[[(i - 1) % m, i, (i + 1) % m]])
