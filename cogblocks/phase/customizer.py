@@ -158,8 +158,8 @@ def _nearest_phases(curve: np.ndarray, points: np.ndarray, guess: np.ndarray) ->
     i = np.argmin(d2, axis=1)
     rows = np.arange(len(points))
     before, at, after = d2[rows, (i - 1) % g], d2[rows, i], d2[rows, (i + 1) % g]
-    curvature = before - 2.0 * at + after
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):  # a neighbour outside the window is inf
+        curvature = before - 2.0 * at + after
         delta = np.where(np.isfinite(curvature) & (curvature > 0.0), 0.5 * (before - after) / curvature, 0.0)
     return TWO_PI * (i + np.clip(delta, -0.5, 0.5)) / g
 

@@ -48,7 +48,7 @@ class PhaseEstimator3D(Diagram):
         The reference motion γ_ref, one cycle from phase 0, in mm.
     h, capacity, start_speed, match_ratio, min_period_fraction
         See :class:`PeriodEstimator`.
-    search, window, jump_factor, distance_floor, velocity_weight
+    search, window, jump_factor, distance_floor, velocity_weight, extrapolate, amplitude_range
         See :class:`PhaseComputer`.
     velocity : {"difference", "kalman"}
         Backward differences of the raw position (default) or the Kalman front end above.
@@ -86,6 +86,8 @@ class PhaseEstimator3D(Diagram):
         jump_factor: float = 3.0,
         distance_floor: float = 5.0,
         velocity_weight: float = 0.01,
+        extrapolate: float = 0.5,
+        amplitude_range: float = 1.3,
         velocity: str = "difference",
         kalman_model: str = "ca",
         customization: str = "affine",
@@ -119,6 +121,8 @@ class PhaseEstimator3D(Diagram):
                 jump_factor=jump_factor,
                 distance_floor=distance_floor,
                 velocity_weight=velocity_weight,
+                extrapolate=extrapolate,
+                amplitude_range=amplitude_range,
             ),
         )
         self.connect(estimator.last_period, customizer.last_period)
