@@ -57,8 +57,9 @@ class PeriodEstimator(Block):
     phase, a frozen sample (equal to the one before) is not recorded. A wrap that comes less than
     ``min_period_fraction`` of the last cycle's duration after the last crossing (or before ``2 H``
     samples) is estimation jitter around 2π and is ignored; the last cycle's duration is the last
-    period's divided by the number of cycles its phases span (two after a missed wrap). The duration of a period is the time between the crossings of
-    2π, interpolated between the samples around each wrap.
+    period's divided by the number of cycles its phases span (two after a missed wrap). The
+    duration of a period is the time between the crossings of 2π, interpolated between the samples
+    around each wrap.
 
     Ports
     -----
