@@ -58,8 +58,8 @@ class PeriodEstimator(Block):
     ``min_period_fraction`` of the last cycle's duration after the last crossing (or before ``2 H``
     samples) is estimation jitter around 2π and is ignored; the last cycle's duration is the last
     period's divided by the number of cycles its phases span (two after a missed wrap). The
-    duration of a period is the time between the crossings of 2π, interpolated between the samples
-    around each wrap.
+    duration of a period is the time between the crossings of 2π, each placed ``θ`` before the
+    first sample of the new period at the last cycle's mean rate.
 
     Ports
     -----
@@ -242,8 +242,9 @@ class PeriodEstimator(Block):
         self.theta_previous = theta
         self.theta_previous_valid = valid
         if wrapped:
-            # the crossing of 2π, interpolated between the last two samples
-            crossing = self.tick - 1.0 + (TWO_PI - previous) / (theta + TWO_PI - previous)
+            # the crossing of 2π: θ ago at the mean rate (the same as interpolating when θ is small, and
+            # right after a jump, such as a freeze that ends past the wrap)
+            crossing = self.tick - theta * self.cycle_ticks / TWO_PI
             if self.stage == _RESYNC:
                 self.n = 0
                 self.stage = _SYNCED
@@ -263,8 +264,11 @@ class PeriodEstimator(Block):
         self.recording[self.n] = p
         # before the phase computer has a reference, the first period's rate continues
         self.tags[self.n] = theta if valid else self.phase_rate * (self.tick - self.crossing)
-        if self.n > 0:  # unwrapped within the period (a wrap taken as jitter, or jitter back across 2π)
-            self.tags[self.n] += TWO_PI * round((self.tags[self.n - 1] - self.tags[self.n]) / TWO_PI)
+        if self.n > 0:
+            # unwrapped within the period, the motion going forward: a step from the last phase lies in
+            # [−π/2, 3π/2) (jitter back across 2π, and a wrap missed or taken as jitter, are recognised)
+            step = self.tags[self.n] - self.tags[self.n - 1]
+            self.tags[self.n] -= TWO_PI * math.floor((step + 0.5 * math.pi) / TWO_PI)
         self.n += 1
 
     def _store(self, length: int, duration: float) -> None:
