@@ -117,6 +117,7 @@ class PhaseComputer(Block):
         self.add_state("frozen", 0)  # ticks the position has been repeated exactly
         self._next = (-1, 0, 0.0)
         self._next_frozen = 0
+        self._centre_of, self._centre_value = -1, np.zeros(3)  # a cache, not state: it follows the inputs
 
     def setup(self) -> None:
         shape = self.positions.spec.shape
@@ -127,10 +128,19 @@ class PhaseComputer(Block):
             )
         self._tau2 = self.velocity_weight**2
 
+    def _centre(self, m: int) -> np.ndarray:
+        """The customised reference's centroid, computed once per reference (the warm search stays O(window))."""
+        count = int(self.count.value)
+        if count != self._centre_of:
+            with np.errstate(over="ignore", invalid="ignore"):
+                self._centre_value = self.positions.value[:m].mean(axis=0)
+            self._centre_of = count
+        return self._centre_value
+
     def _squared_distance(self, rows: Any, m: int) -> np.ndarray:
         # a corrupt reference row overflows to inf (never the nearest) or gives NaN (checked by the caller)
         with np.errstate(over="ignore", invalid="ignore"):
-            centre = self.positions.value[:m].mean(axis=0)
+            centre = self._centre(m)
             g = self.positions.value[rows] - centre
             gv = self.velocities.value[rows]
             a, v = self.p.value - centre, self.v.value
