@@ -282,7 +282,10 @@ class ReferenceCustomizer(Block):
     reference : array_like, shape (N, 3)
         The reference motion γ_ref, one cycle from phase 0, in mm (N >= 2).
     customization : {"affine", "deliverable"}
-        The family of the fitted map, see :func:`customize_reference`.
+        ``"affine"``: the anchored fit above. ``"deliverable"``: the deliverable as it is, for
+        reproduction: its scale-then-rotate fit (:func:`customize_reference`) with sample ``j`` of
+        the period at phase ``2π j / M`` (phase 0 where the period began, the phases given are not
+        used), held on the same grid; its phase is not anchored.
     grid : int, optional
         Phase grid size ``G`` (>= 8); N by default.
 
@@ -334,9 +337,13 @@ class ReferenceCustomizer(Block):
         period, phases = self.last_period.value[:m], self.last_phases.value[:m]
         if m < 4 or not (plausible(period) and plausible(phases) and 0.0 < duration < PLAUSIBLE):
             return
-        anchor = "start" if self.count.value == 0 else "mean"
-        iterations = _FIRST_ITERATIONS if anchor == "start" else _ITERATIONS
-        a_t, c = _anchored_map(self.reference, period, phases, self.customization, anchor, iterations)
+        if self.customization == "deliverable":
+            # the deliverable as it is: sample j of the period at phase 2π j / M, phase 0 where the period began
+            a_t, c = _fit_map(_on_curve(self.reference, TWO_PI * np.arange(m) / m), period, "deliverable")
+        else:
+            anchor = "start" if self.count.value == 0 else "mean"
+            iterations = _FIRST_ITERATIONS if anchor == "start" else _ITERATIONS
+            a_t, c = _anchored_map(self.reference, period, phases, self.customization, anchor, iterations)
         positions = self._curve @ a_t + c
         behind = _on_curve(self.reference, self._phases - TWO_PI * self.dt / duration) @ a_t + c
         self.positions.value[...] = positions
