@@ -19,6 +19,8 @@ _WAITING = 0  # the hand has not moved yet
 _FIRST = 1  # recording the first period, looking for the end of it by segment matching
 _SYNCED = 2  # recording a later period, which ends when the estimated phase wraps
 _RESYNC = 3  # a later period overflowed the buffer: wait for the next wrap to start afresh
+# Segments of the first period whose repeat is looked for: a freeze can hide the first one's repeat.
+_SEGMENTS = 5
 
 
 def segment_samples(h: float, dt: float) -> int:
@@ -47,7 +49,10 @@ class PeriodEstimator(Block):
     ``δ`` in ``[−½, ½]`` placing the minimum of the parabola through ``d(k* − 1 … k* + 1)``: the
     period ``M₁ = k_P2 − k_P1`` is a real number of samples. A local minimum counts only when
     ``d(k*) < match_ratio · max d`` so far: noise makes shallow local minima on the way up, a real
-    repetition is a deep one. The samples of the first period get the phases ``2π j / M₁``
+    repetition is a deep one. A frozen tracker can hide the repeat of the first segment, so the same
+    search runs for the first five segments (``a`` shifted by ``0, H, … 4H``); the first repeat found
+    ends the period (``k_P2`` shifted back by the segment's offset). On a steady recording it is
+    the first segment's. The samples of the first period get the phases ``2π j / M₁``
     (phase 0 at the start of the motion, assumption 3), those recorded after it the same rate
     continued.
 
@@ -138,9 +143,9 @@ class PeriodEstimator(Block):
         self.add_state("recording", np.zeros((cap, 3)))
         self.add_state("tags", np.zeros(cap))
         self.add_state("n", 0)
-        self.add_state("d_recent", np.zeros(5))  # d(k-4) ... d(k)
-        self.add_state("n_d", 0)
-        self.add_state("d_max", 0.0)
+        self.add_state("d_recent", np.zeros((_SEGMENTS, 5)))  # d(k-4) ... d(k) of each first segment
+        self.add_state("n_d", np.zeros(_SEGMENTS, dtype=np.int64))
+        self.add_state("d_max", np.zeros(_SEGMENTS))
         self.add_state("theta_previous", 0.0)
         self.add_state("theta_previous_valid", False)
         self.add_state("phase_rate", 0.0)  # rad per tick of the first period, for samples with no estimate yet
@@ -187,8 +192,8 @@ class PeriodEstimator(Block):
             self.recording[0] = self.previous
             self.recording[1] = p
             self.n = 2
-            self.n_d = 0
-            self.d_max = 0.0
+            self.n_d[...] = 0
+            self.d_max[...] = 0.0
             self.stage = _FIRST
 
     def _first_period(self, p: np.ndarray) -> None:
@@ -201,27 +206,35 @@ class PeriodEstimator(Block):
         newest = self.n - 1
         if newest <= h:
             return
-        first = rec[:h]
+        # the deliverable's segment distance for each of the first _SEGMENTS segments (offsets 0, H, 2H, ...)
+        offsets = h * np.arange(_SEGMENTS)
+        active = newest > offsets + h
         latest = rec[newest - h + 1 : newest + 1]
-        d = np.linalg.norm(first - latest, axis=1).mean()
-        d += np.linalg.norm(np.diff(first, axis=0) - np.diff(latest, axis=0), axis=1).mean()
-        recent = self.d_recent
-        recent[:-1] = recent[1:]
-        recent[-1] = d
-        self.n_d += 1
-        self.d_max = max(self.d_max, d)
-        centre = recent[2]
-        if (
-            self.n_d >= 5
-            and centre < self.match_ratio * self.d_max
-            and centre < recent[0]
-            and centre < recent[1]
-            and centre < recent[3]
-            and centre < recent[4]
-        ):
+        firsts = rec[offsets[active, None] + np.arange(h)]  # (active segments, H, 3)
+        d = np.linalg.norm(firsts - latest, axis=2).mean(axis=1)
+        d += np.linalg.norm(np.diff(firsts, axis=1) - np.diff(latest, axis=0), axis=2).mean(axis=1)
+        recent = self.d_recent[active]
+        recent[:, :-1] = recent[:, 1:]
+        recent[:, -1] = d
+        self.d_recent[active] = recent
+        self.n_d[active] += 1
+        self.d_max[active] = np.maximum(self.d_max[active], d)
+        centre = self.d_recent[:, 2]
+        found = (
+            (self.n_d >= 5)
+            & (centre < self.match_ratio * self.d_max)
+            & (centre < self.d_recent[:, 0])
+            & (centre < self.d_recent[:, 1])
+            & (centre < self.d_recent[:, 3])
+            & (centre < self.d_recent[:, 4])
+        )
+        if found.any():
+            segment = int(np.argmax(found))  # the earliest segment whose repeat was found (normally the first)
+            recent = self.d_recent[segment]
+            centre = recent[2]
             curvature = recent[1] - 2.0 * centre + recent[3]  # > 0: centre is a strict minimum
             delta = 0.5 * (recent[1] - recent[3]) / curvature
-            length = newest - 2 - (h - 1) + delta  # M₁ = k_P2 - k_P1, in samples
+            length = newest - 2 - (h - 1) + delta - offsets[segment]  # M₁ = k_P2 - k_P1, in samples
             start = math.ceil(length)  # the first sample of the second period
             self.phase_rate = TWO_PI / length
             self.cycle_ticks = length

@@ -155,3 +155,20 @@ def test_generator_defaults_are_unchanged():
     )
     np.testing.assert_allclose(motion.phase[[123, 599]], [3.670202208, 5.809720954], atol=1e-9)
     assert motion.dropout.sum() == 8
+
+
+def test_a_freeze_over_the_end_of_the_first_period():
+    # the tracker freezes for 0.3 s over the first period's end: the first segment's repeat is never
+    # seen, a later segment's is (with the first segment alone the first period found is 4 s long, two
+    # cycles, and the error is π)
+    motion = generate_motion3d(5, duration=12.0, rotation_deg=60.0, **CLEAN)
+    end = motion.first_period
+    position = motion.position.copy()
+    position[end - 13 : end + 17] = position[end - 14]
+    motion = dataclasses.replace(motion, position=position)
+    trace = run(motion)
+    valid = trace["valid"]
+    first_valid = int(np.argmax(valid))
+    assert first_valid < end + 60  # within 0.6 s of the true end, not a cycle later
+    assert abs(trace["duration"][first_valid] - end * motion.dt) < 0.1
+    assert error(trace, motion)[first_valid + 250 :].max() < 0.05  # from the next cycle on
