@@ -154,7 +154,7 @@ def _nearest_phases(curve: np.ndarray, points: np.ndarray, guess: np.ndarray) ->
     point to the other branch; the phase is refined between grid points by a parabola.
     """
     g = len(curve)
-    reach = g // 6
+    reach = max(1, g // 6)  # at least the two neighbours the parabola needs
     centre = np.rint(np.mod(guess, TWO_PI) * (g / TWO_PI)).astype(np.intp)
     rows = (centre[:, None] + np.arange(-reach, reach + 1)) % g  # the window of each point
     d2 = ((points[:, None, :] - curve[rows]) ** 2).sum(axis=2)
