@@ -19,8 +19,12 @@ __all__ = ["PhaseComputer"]
 class PhaseComputer(Block):
     """Phase of the current sample on the customised reference (section 6.1.2, "phase computer").
 
-    ``i* = argmin_i D(i)``, ``D(i) = ‖p − γ^c(i)‖² + τ² ‖v − γ̇^c(i)‖²``, and
-    ``θ = 2π (i* + δ) / G``, the reference sampled on ``G`` points of a uniform phase grid and
+    ``i* = argmin_i D(i)``, ``D(i) = min_s ‖(p − c̄) − s (γ^c(i) − c̄)‖² + τ² ‖v − s γ̇^c(i)‖²``
+    with ``c̄`` the reference's centroid and the amplitude ``s`` (closed form) within
+    ``[1 / amplitude_range, amplitude_range]``, so that a cycle larger or smaller than the one the
+    reference was fitted to does not slide the nearest point along the curve
+    (``amplitude_range = 1`` gives the deliverable's distance). ``θ = 2π (i* + δ) / G``, the
+    reference sampled on ``G`` points of a uniform phase grid and
     ``δ`` in ``[−½, ½]`` placing the minimum of the parabola through ``D(i* − 1 … i* + 1)``: the
     phase is continuous, not a multiple of the grid step. The velocity weight ``τ`` (in s) turns
     velocities into displacements; by default it is 0.01 s (one sample at 100 Hz, the
@@ -68,6 +72,8 @@ class PhaseComputer(Block):
         ``τ`` in s (>= 0; 0.01 s by default).
     extrapolate : float
         Longest frozen stretch in s (>= 0) over which the phase is extrapolated (0.5 s by default).
+    amplitude_range : float
+        Largest ratio between the cycle's amplitude and the reference's (>= 1; 1.3 by default).
 
     Notes
     -----
