@@ -49,7 +49,8 @@ class PhaseEstimator3D(Diagram):
     h, capacity, start_speed, match_ratio, min_period_fraction
         See :class:`PeriodEstimator`.
     search, window, jump_factor, distance_floor, velocity_weight, extrapolate, amplitude_range
-        See :class:`PhaseComputer`.
+        See :class:`PhaseComputer`; ``amplitude_range`` is 1.3 by default, 1 (the deliverable's
+        distance) with ``customization="deliverable"``.
     velocity : {"difference", "kalman"}
         Backward differences of the raw position (default) or the Kalman front end above.
     kalman_model : {"cv", "ca"}
@@ -87,7 +88,7 @@ class PhaseEstimator3D(Diagram):
         distance_floor: float = 5.0,
         velocity_weight: float = 0.01,
         extrapolate: float = 0.5,
-        amplitude_range: float = 1.3,
+        amplitude_range: float | None = None,
         velocity: str = "difference",
         kalman_model: str = "ca",
         customization: str = "affine",
@@ -122,7 +123,10 @@ class PhaseEstimator3D(Diagram):
                 distance_floor=distance_floor,
                 velocity_weight=velocity_weight,
                 extrapolate=extrapolate,
-                amplitude_range=amplitude_range,
+                # the deliverable's distance with its customizer: the reproduction stays the deliverable's
+                amplitude_range=(1.0 if customization == "deliverable" else 1.3)
+                if amplitude_range is None
+                else amplitude_range,
             ),
         )
         self.connect(estimator.last_period, customizer.last_period)
