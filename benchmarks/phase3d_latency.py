@@ -9,11 +9,13 @@ other processes, which swamp the 99th percentile (milliseconds instead of tens o
 The figures include the engine's per-tick overhead and every block of the estimator (the period
 estimator, the customiser when a period completes, the phase computer); garbage collection is off
 while timing. The phase computer searches the
-customised reference, which has as many samples as the last period, so the trajectories are
-sampled with ``N`` samples per nominal cycle (clean: no noise, no drop-outs) and the reference has
-``N`` samples too, for ``N`` = 200, 2000, 20000. Only the ticks after the first period count
-(before it there is nothing to search). Prints one JSON object per line, the warm search's
-percentile with the full search's as reference; ``ratio = value / reference``.
+customised reference, which has as many samples as the reference (its phase grid), and the
+trajectories are sampled with ``N`` samples per nominal cycle (clean: no noise, no drop-outs), for
+``N`` = 200, 2000, 20000; the estimator's rules in seconds (``h``, ``window``,
+``velocity_weight``) are set to 10, 10 and 1 samples, the deliverable's values at 100 Hz. Only the
+ticks after the first period count (before it there is nothing to search). Prints one JSON object
+per line, the warm search's percentile with the full search's as reference;
+``ratio = value / reference``.
 """
 
 from __future__ import annotations
@@ -48,7 +50,10 @@ def _tick_latencies(n_reference: int, search: str, n_measured: int) -> np.ndarra
         dropout_rate=0.0,
         n_reference=n_reference,
     )
-    estimator = PhaseEstimator3D(motion.reference, capacity=2 * n_reference, search=search)
+    # the rules are in seconds; at N samples per cycle the deliverable's 10 samples are 10 dt
+    estimator = PhaseEstimator3D(
+        motion.reference, capacity=2 * n_reference, search=search, h=10 * dt, window=10 * dt, velocity_weight=dt
+    )
     compiled = estimator.compile(dt)
     positions = motion.position
     k = 0

@@ -118,13 +118,16 @@ def _run_phase3d(args: argparse.Namespace) -> int:
 
     if not 30.0 <= args.rate <= 240.0:
         raise ValueError(f"--rate must be between 30 and 240 Hz, got {args.rate:g}")
-    result = phase3d_accuracy(n_trajectories=args.trajectories, seed=args.seed, rate_hz=args.rate)
+    result = phase3d_accuracy(
+        n_trajectories=args.trajectories, seed=args.seed, rate_hz=args.rate, motion_set=args.motion_set
+    )
     result["chain"] = run_phase_chain(seed=args.seed)
 
     def render(r: dict[str, Any]) -> str:
         chain = r["chain"]
         return (
-            f"3D phase estimation over {r['n_trajectories']} synthetic trajectories (after the first period):\n"
+            f"3D phase estimation over {r['n_trajectories']} synthetic trajectories, set {r['set']!r}, "
+            f"{r['rate_hz']:g} Hz (after the first period):\n"
             f"  against ground truth:        mean {r['mean_error_rad']:.3f} rad, "
             f"95th percentile {r['p95_error_rad']:.3f} rad\n"
             f"  against offline PCA-Hilbert: mean {r['mean_error_vs_offline_rad']:.3f} rad, "
@@ -291,6 +294,14 @@ def _build_parser() -> argparse.ArgumentParser:
     phase3d.add_argument("--trajectories", type=COUNT, default=30, help="synthetic trajectories (default 30)")
     phase3d.add_argument("--seed", type=SEED, default=0, help="seed of the trajectories (default 0)")
     phase3d.add_argument("--rate", type=float, default=100.0, help="sampling rate in Hz, 30-240 (default 100)")
+    phase3d.add_argument(
+        "--set",
+        dest="motion_set",
+        choices=("today", "harder"),
+        default="today",
+        help="trajectories: 'today' (the generator's defaults) or 'harder' (rotations to 180°, uneven speed, "
+        "100-300 ms freezes, 10 %% drifts; docs/phase-estimation-3d.md)",
+    )
     _common(phase3d)
     phase3d.set_defaults(handler=_run_phase3d)
 

@@ -53,6 +53,7 @@ def test_run_without_target_shows_usage(capsys):
         (["sync", "--seed", "-1"], "--seed", "expected an integer >= 0, got -1"),
         (["phase3d", "--seed", "one"], "--seed", "expected an integer >= 0, got 'one'"),
         (["phase3d", "--trajectories", "0"], "--trajectories", "expected an integer >= 1, got 0"),
+        (["phase3d", "--set", "hardest"], "--set", "invalid choice: 'hardest'"),
         (["demo", "--duration", "0"], "--duration", "expected a duration > 0 s, got 0"),
         (["demo", "--duration", "nan"], "--duration", "expected a duration > 0 s"),
         (["sync", "--duration", "-10"], "--duration", "expected a duration > 0 s"),

@@ -136,6 +136,7 @@ def generate_motion3d(
     dropout_samples: tuple[int, int] = (2, 8),
     n_reference: int = 200,
     speed_wobble: float = 0.0,
+    dropout_duration: tuple[float, float] | None = None,
 ) -> Motion3D:
     """Generate one performed 3D trajectory of the reference primitive.
 
@@ -178,6 +179,10 @@ def generate_motion3d(
         Uneven speed within a cycle, in [0, 0.5]: the phase advances at ``1 + speed_wobble · cos(φ + ψ)``
         times its mean speed (ψ random; a cycle lasts ``1 / sqrt(1 − speed_wobble²)`` times longer).
         0 (the default) draws nothing, so the trajectories of a seed are those of earlier versions.
+    dropout_duration : (float, float), optional
+        Shortest and longest drop-out in s (0 < shortest <= longest), in place of
+        ``dropout_samples``: ``round(duration / dt)`` samples, at least 1, so that a set of
+        trajectories means the same at every rate. ``(0.1, 0.3)`` at 100 Hz is ``(10, 30)``.
 
     Returns
     -------
@@ -203,6 +208,12 @@ def generate_motion3d(
     dropout_rate = finite_number(owner, "dropout_rate", dropout_rate, low=0.0)
     if not (isinstance(dropout_samples, tuple) and len(dropout_samples) == 2):
         raise ValueError(f"{owner}: dropout_samples must be a tuple (shortest, longest), got {dropout_samples!r}")
+    if dropout_duration is not None:
+        if not (isinstance(dropout_duration, tuple) and len(dropout_duration) == 2):
+            raise ValueError(f"{owner}: dropout_duration must be a tuple (shortest, longest), got {dropout_duration!r}")
+        low = finite_number(owner, "dropout_duration[0]", dropout_duration[0], low=0.0, low_open=True)
+        high = finite_number(owner, "dropout_duration[1]", dropout_duration[1], low=low)
+        dropout_samples = (max(1, round(low / dt)), max(1, round(high / dt)))
     shortest = positive_int(owner, "dropout_samples[0]", dropout_samples[0])
     longest = positive_int(owner, "dropout_samples[1]", dropout_samples[1], minimum=shortest)
     reference = reference_primitive(n_reference)

@@ -26,10 +26,31 @@ from cogblocks.data.motion3d import Motion3D, generate_motion3d
 from cogblocks.diagrams.sync import MOTIONS
 from cogblocks.phase import PhaseEstimator3D, PhasePositionComputer, offline_phase_pca_hilbert
 from cogblocks.sim import Block, Diagram, Simulator
-from cogblocks.sim.params import finite_number, positive_int
+from cogblocks.sim.params import finite_number, one_of, positive_int
 from cogblocks.sync import Blender, KuramotoGroup, L2Sync, OrderParameter
 
-__all__ = ["phase3d_accuracy", "phase_chain", "plot_phase3d", "run_phase_chain", "run_phase_estimator"]
+__all__ = [
+    "MOTION3D_SETS",
+    "phase3d_accuracy",
+    "phase_chain",
+    "plot_phase3d",
+    "run_phase_chain",
+    "run_phase_estimator",
+]
+
+#: Named sets of synthetic trajectories (changes to :func:`generate_motion3d`'s defaults). ``"today"``:
+#: the defaults (up to 20° of rotation, 5 % drifts, drop-outs of 2-8 samples). ``"harder"``: rotations
+#: up to 180°, the phase speed ±20 % within each cycle, drop-outs of 100-300 ms, 10 % drifts.
+MOTION3D_SETS: dict[str, dict[str, Any]] = {
+    "today": {},
+    "harder": {
+        "rotation_deg": 180.0,
+        "speed_wobble": 0.2,
+        "dropout_duration": (0.1, 0.3),
+        "period_drift": 0.1,
+        "amplitude_drift": 0.1,
+    },
+}
 
 
 def phase_chain(
@@ -162,6 +183,7 @@ def phase3d_accuracy(
     seed: int = 0,
     duration: float = 30.0,
     rate_hz: float = 100.0,
+    motion_set: str = "today",
     **estimator_kwargs: Any,
 ) -> dict[str, Any]:
     """Accuracy of the online 3D phase estimator over seeded synthetic trajectories.
@@ -182,6 +204,8 @@ def phase3d_accuracy(
         Length of each trajectory in s (long enough for two cycles: >= 6 s).
     rate_hz : float
         Sampling rate of the trajectories in Hz (5-1000; 100 by default).
+    motion_set : str
+        A key of :data:`MOTION3D_SETS` (``"today"`` by default).
     **estimator_kwargs
         Passed to :class:`PhaseEstimator3D`.
 
@@ -194,15 +218,16 @@ def phase3d_accuracy(
         same samples), ``worst_trajectory_mean_error_rad``, ``first_period_error_samples_max``
         (largest ``|detected − true|`` length of the first period), ``valid_share`` (share of the
         samples with a valid estimate), ``n_trajectories``, ``n_samples`` (samples in the
-        statistics), ``duration`` and ``seed``.
+        statistics), ``duration``, ``rate_hz``, ``seed`` and ``set``.
     """
     n_trajectories = positive_int("phase3d_accuracy", "n_trajectories", n_trajectories)
     duration = finite_number("phase3d_accuracy", "duration", duration, low=6.0)
     rate_hz = finite_number("phase3d_accuracy", "rate_hz", rate_hz, low=5.0, high=1000.0)
+    changes = MOTION3D_SETS[one_of("phase3d_accuracy", "motion_set", motion_set, MOTION3D_SETS)]
     online, versus_offline, offline = [], [], []
     first_errors, valid_counts, n_total = [], [], 0
     for child in np.random.SeedSequence(seed).spawn(n_trajectories):
-        motion = generate_motion3d(np.random.default_rng(child), duration=duration, dt=1.0 / rate_hz)
+        motion = generate_motion3d(np.random.default_rng(child), duration=duration, dt=1.0 / rate_hz, **changes)
         run = run_phase_estimator(motion, **estimator_kwargs)
         valid = run["valid"]
         offline_phase = offline_phase_pca_hilbert(motion.position)
@@ -228,6 +253,7 @@ def phase3d_accuracy(
         "duration": duration,
         "rate_hz": rate_hz,
         "seed": seed,
+        "set": motion_set,
     }
 
 

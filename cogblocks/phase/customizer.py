@@ -6,18 +6,26 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.blocks.samples import plausible
+from cogblocks.blocks.angles import TWO_PI
+from cogblocks.blocks.samples import PLAUSIBLE, plausible
 from cogblocks.blocks.specs import COUNT
 from cogblocks.sim import Block, Signal
-from cogblocks.sim.params import finite_array, finite_number, one_of
+from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
 
-__all__ = ["CUSTOMIZATIONS", "ReferenceCustomizer", "customize_reference", "kabsch_rotation"]
+__all__ = ["CUSTOMIZATIONS", "ReferenceCustomizer", "anchored_reference", "customize_reference", "kabsch_rotation"]
 
 #: How the reference is fitted to a period: a least-squares linear map, or the deliverable's scale-then-rotate.
 CUSTOMIZATIONS = ("affine", "deliverable")
 
 # A degenerate reference axis: its spread is below this share of the largest spread.
 _DEGENERATE = 1e-9
+# The anchored fit: geometric re-estimations of the phases (first period, later ones), samples used, rows of
+# the nearest-point search. The first period's phases are even in time, off by up to ±0.2 rad under a ±20 %
+# speed variation; each re-estimation removes about 15 % of that. Later periods start from measured phases.
+_FIRST_ITERATIONS = 24
+_ITERATIONS = 4
+_FIT_SAMPLES = 200
+_FIT_GRID = 128
 
 
 def _as_curve(owner: str, name: str, value: Any, minimum: int) -> np.ndarray:
@@ -107,47 +115,165 @@ def customize_reference(
 
 
 def _customize(ref: np.ndarray, per: np.ndarray, dt: float, customization: str) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`customize_reference` on checked arrays (the block calls this once per period)."""
-    n, m = len(ref), len(per)
-    at = np.arange(m) * (n / m)
-    below = at.astype(np.intp)
+    """:func:`customize_reference` on checked arrays."""
+    q = _on_curve(ref, TWO_PI * np.arange(len(per)) / len(per))
+    a_t, c = _fit_map(q, per, customization)
+    positions = q @ a_t + c
+    velocities = (positions - np.roll(positions, 1, axis=0)) / dt
+    return positions, velocities
+
+
+def _on_curve(ref: np.ndarray, phases: np.ndarray) -> np.ndarray:
+    """The closed curve ``ref`` (sample ``i`` at phase ``2π i / N``) at any phases, linearly interpolated."""
+    n = len(ref)
+    at = np.mod(phases, TWO_PI) * (n / TWO_PI)
+    below = np.minimum(at.astype(np.intp), n - 1)
     frac = (at - below)[:, None]
-    resampled = ref[below] * (1.0 - frac) + ref[(below + 1) % n] * frac  # the curve is closed
-    q = resampled - resampled.mean(axis=0)
-    centroid = per.mean(axis=0)
-    p = per - centroid
+    return ref[below] * (1.0 - frac) + ref[(below + 1) % n] * frac
+
+
+def _fit_map(q: np.ndarray, per: np.ndarray, customization: str) -> tuple[np.ndarray, np.ndarray]:
+    """The map ``x ↦ x @ a_t + c`` that fits reference points ``q`` to the corresponding ``per`` (step 2-4)."""
+    q_mean, centroid = q.mean(axis=0), per.mean(axis=0)
+    q, p = q - q_mean, per - centroid
     if customization == "affine":
         a_t, *_ = np.linalg.lstsq(q, p, rcond=None)  # q @ a_t ≈ p
-        positions = q @ a_t + centroid
     else:
         sd_ref, sd_per = q.std(axis=0), p.std(axis=0)
         moving = sd_ref > _DEGENERATE * max(float(sd_ref.max()), 1.0)
         scale = np.ones(3)
         scale[moving] = sd_per[moving] / sd_ref[moving]
-        q *= scale
-        positions = q @ kabsch_rotation(q, p).T + centroid
-    velocities = (positions - np.roll(positions, 1, axis=0)) / dt
-    return positions, velocities
+        a_t = scale[:, None] * kabsch_rotation(q * scale, p).T
+    return a_t, centroid - q_mean @ a_t
+
+
+def _nearest_phases(curve: np.ndarray, points: np.ndarray, guess: np.ndarray) -> np.ndarray:
+    """Phase of the nearest point of the closed ``curve`` to each point, within a sixth of a cycle of ``guess``.
+
+    The search is restricted around the guess so that a curve passing near itself cannot send a
+    point to the other branch; the phase is refined between grid points by a parabola.
+    """
+    g = len(curve)
+    reach = max(1, g // 6)  # at least the two neighbours the parabola needs
+    centre = np.rint(np.mod(guess, TWO_PI) * (g / TWO_PI)).astype(np.intp)
+    rows = (centre[:, None] + np.arange(-reach, reach + 1)) % g  # the window of each point
+    d2 = ((points[:, None, :] - curve[rows]) ** 2).sum(axis=2)
+    j = np.clip(np.argmin(d2, axis=1), 1, 2 * reach - 1)  # the parabola needs both neighbours
+    at = np.arange(len(points))
+    before, here, after = d2[at, j - 1], d2[at, j], d2[at, j + 1]
+    curvature = before - 2.0 * here + after
+    with np.errstate(invalid="ignore", divide="ignore"):
+        delta = np.where(curvature > 0.0, 0.5 * (before - after) / curvature, 0.0)
+    return TWO_PI * (rows[at, j] + np.clip(delta, -0.5, 0.5)) / g
+
+
+def anchored_reference(
+    reference: Any,
+    period: Any,
+    phases: Any,
+    *,
+    customization: str = "affine",
+    anchor: str = "mean",
+    iterations: int = _ITERATIONS,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Fit the reference to a period whose samples carry phases, keeping the phase coordinate anchored.
+
+    The map of step 3 of :func:`customize_reference` is fitted on the pairs ``(γ_ref(φ_j), p_j)``,
+    ``φ_j`` the phase of sample ``j``, rather than on the reference resampled to the period's sample
+    count, so that neither a speed that varies within the cycle nor a frozen stretch distorts it.
+    The phases are then re-estimated geometrically, as the nearest point of each sample on the
+    fitted curve (which does not depend on the speed), and the fit repeated ``iterations`` times.
+    A linear map can mimic a constant phase shift of an elliptic curve, so the geometry does not fix
+    the phase origin: ``anchor`` does. ``"start"`` keeps the phase of the period's first sample
+    (the start of the motion, phase 0 by assumption 3); ``"mean"`` keeps the given phases on
+    average (they were measured on the previous, anchored reference), up to the part of a constant
+    shift the map cannot mimic, which it removes: an error of the given phases is kept or reduced.
+
+    Parameters
+    ----------
+    reference : array_like, shape (N, 3)
+        The reference motion γ_ref, sample ``i`` at phase ``2π i / N``, in mm (N >= 2).
+    period : array_like, shape (M, 3)
+        Samples of one (or more) cycles in mm, M >= 4.
+    phases : array_like, shape (M,)
+        Their phases in rad (any unwrapping).
+    customization : {"affine", "deliverable"}
+        The family of the map (see :func:`customize_reference`).
+    anchor : {"start", "mean"}
+        What fixes the phase origin.
+    iterations : int
+        Geometric re-estimations of the phases (>= 0).
+
+    Returns
+    -------
+    a_t : numpy.ndarray, shape (3, 3)
+        The linear part, applied as ``x @ a_t``.
+    c : numpy.ndarray, shape (3,)
+        The translation: ``γ^c(φ) = γ_ref(φ) @ a_t + c``.
+    """
+    owner = "anchored_reference"
+    reference = _as_curve(owner, "reference", reference, 2)
+    period = _as_curve(owner, "period", period, 4)
+    phases = finite_array(owner, "phases", phases, shape=(len(period),))
+    customization = one_of(owner, "customization", customization, CUSTOMIZATIONS)
+    anchor = one_of(owner, "anchor", anchor, ("start", "mean"))
+    iterations = positive_int(owner, "iterations", iterations, minimum=0)
+    return _anchored_map(reference, period, phases, customization, anchor, iterations)
+
+
+def _anchored_map(
+    reference: np.ndarray, period: np.ndarray, phases: np.ndarray, customization: str, anchor: str, iterations: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`anchored_reference` on checked arrays (the block calls this once per period)."""
+    if len(period) > _FIT_SAMPLES:  # a few hundred samples fix twelve numbers; keep the fit cheap
+        keep = np.linspace(0, len(period) - 1, _FIT_SAMPLES).round().astype(np.intp)
+        period, phases = period[keep], phases[keep]
+    g = min(len(reference), _FIT_GRID)
+    coarse = _on_curve(reference, TWO_PI * np.arange(g) / g)  # nearest points are searched on g rows
+    # "start": the first sample, where the motion began (phase 0, assumption 3); "mean": all of them
+    anchored = np.arange(len(phases)) == 0 if anchor == "start" else np.ones(len(phases), dtype=bool)
+    tags = phases
+    for _ in range(iterations):
+        a_t, c = _fit_map(_on_curve(reference, tags), period, customization)
+        found = _nearest_phases(coarse @ a_t + c, period, tags)
+        offset = np.angle(np.exp(1j * (found - phases))[anchored].mean())
+        tags = found - offset
+    return _fit_map(_on_curve(reference, tags), period, customization)
 
 
 class ReferenceCustomizer(Block):
-    """Fit the reference motion to the last completed period (section 6.1.2 b).
+    """Fit the reference motion to the last completed period (section 6.1.2 b), on a fixed phase grid.
 
-    Runs :func:`customize_reference` each time a new period arrives (when ``period_count``
-    changes) and holds the result in between.
+    Each time a new period arrives (when ``period_count`` changes) the map of
+    :func:`anchored_reference` is fitted on the period's samples and their phases, and the
+    customised reference is that map applied to γ_ref at the phases ``2π g / G``,
+    ``g = 0 … G − 1``: its phase coordinate is the reference's own, whatever the number of samples
+    the period had (a real number) and however unevenly they were spread in phase. The first
+    period is anchored at its start (phase 0, assumption 3), each later one to the phases measured
+    on the previous customised reference, so the phase origin does not move from cycle to cycle.
+    The result is held in between.
+
+    The velocity of grid point ``g`` is the backward difference the sensor would see at the
+    period's mean speed: ``(γ^c(φ_g) − γ^c(φ_g − 2π dt / T)) / dt``, ``T`` the period's duration.
 
     Ports
     -----
     last_period : input, shape (capacity, 3), mm
-        The last completed period, in its first ``last_length`` rows.
+        The samples of the last completed period, in its first ``last_length`` rows.
+    last_phases : input, shape (capacity,), rad
+        Their phases.
     last_length, period_count : input, int64
-        Its length and the period counter (see :class:`PeriodEstimator`).
-    positions : output, shape (capacity, 3), mm
-        The customised reference γ^c in its first ``length`` rows (zeros after them).
-    velocities : output, shape (capacity, 3), mm/s
-        Its backward-difference velocity, in the same rows.
+        The number of samples and the period counter (see :class:`PeriodEstimator`).
+    last_duration : input, s
+        The period's duration.
+    positions : output, shape (G, 3), mm
+        The customised reference γ^c on the phase grid.
+    velocities : output, shape (G, 3), mm/s
+        Its velocity, as above.
     length : output, int64
-        Number of samples of γ^c (the period's length ``M_ℓ``; 0 before the first period).
+        ``G`` once a reference has been fitted, 0 before.
+    duration : output, s
+        The duration of the period it was fitted to (0 before).
     count : output, int64
         The period counter γ^c was made from (0: no customised reference yet).
 
@@ -156,42 +282,72 @@ class ReferenceCustomizer(Block):
     reference : array_like, shape (N, 3)
         The reference motion γ_ref, one cycle from phase 0, in mm (N >= 2).
     customization : {"affine", "deliverable"}
-        How the reference is fitted, see :func:`customize_reference`.
+        ``"affine"``: the anchored fit above. ``"deliverable"``: the deliverable as it is, for
+        reproduction: its scale-then-rotate fit (:func:`customize_reference`) with sample ``j`` of
+        the period at phase ``2π j / M`` (phase 0 where the period began, the phases given are not
+        used), held on the same grid; its phase is not anchored.
+    grid : int, optional
+        Phase grid size ``G`` (>= 8); N by default.
 
     Notes
     -----
-    Bad data policy: a period with a non-finite or implausible (beyond 1 km)
-    coordinate is not fitted; the previous customised reference holds.
+    Bad data policy: a period with fewer than 4 samples, a non-finite or implausible (beyond 1 km)
+    coordinate or phase, or a duration that is not a positive finite number is not fitted; the
+    previous customised reference holds.
     """
 
-    def __init__(self, reference: Any, *, customization: str = "affine", period: float | None = None) -> None:
+    def __init__(
+        self,
+        reference: Any,
+        *,
+        customization: str = "affine",
+        grid: int | None = None,
+        period: float | None = None,
+    ) -> None:
         super().__init__(period=period)
         self.reference = _as_curve("ReferenceCustomizer", "reference", reference, 2)
         self.customization = one_of(self, "customization", customization, CUSTOMIZATIONS)
+        self.grid = len(self.reference) if grid is None else positive_int(self, "grid", grid, minimum=8)
+        self._phases = TWO_PI * np.arange(self.grid) / self.grid
+        self._curve = _on_curve(self.reference, self._phases)
         self.add_input("last_period", Signal(shape=None, unit="mm"))
+        self.add_input("last_phases", Signal(shape=None, unit="rad"))
         self.add_input("last_length", COUNT)
+        self.add_input("last_duration", Signal(shape=(), unit="s"))
         self.add_input("period_count", COUNT)
-        self.add_output("positions", like="last_period")
-        self.add_output("velocities", like="last_period", unit="mm/s")
+        self.add_output("positions", shape=(self.grid, 3), unit="mm")
+        self.add_output("velocities", shape=(self.grid, 3), unit="mm/s")
         self.add_output("length", COUNT)
+        self.add_output("duration", shape=(), unit="s")
         self.add_output("count", COUNT)
 
     def setup(self) -> None:
         shape = self.last_period.spec.shape
-        if len(shape) != 2 or shape[1] != 3 or shape[0] < 2:
-            raise self._fail(f"last_period must have shape (capacity, 3) with capacity >= 2, got {shape}")
+        if len(shape) != 2 or shape[1] != 3 or shape[0] < 4:
+            raise self._fail(f"last_period must have shape (capacity, 3) with capacity >= 4, got {shape}")
+        if self.last_phases.spec.shape != shape[:1]:
+            raise self._fail(f"last_phases must have shape ({shape[0]},), got {self.last_phases.spec.shape}")
 
     def output(self, k: int) -> None:
         count = int(self.period_count.value)
         if count == self.count.value:
             return
         m = int(self.last_length.value)
-        if m < 2 or not plausible(self.last_period.value[:m]):
+        duration = float(self.last_duration.value)
+        period, phases = self.last_period.value[:m], self.last_phases.value[:m]
+        if m < 4 or not (plausible(period) and plausible(phases) and 0.0 < duration < PLAUSIBLE):
             return
-        positions, velocities = _customize(self.reference, self.last_period.value[:m], self.dt, self.customization)
-        self.positions.value[:m] = positions
-        self.positions.value[m:] = 0.0
-        self.velocities.value[:m] = velocities
-        self.velocities.value[m:] = 0.0
-        self.length.value[...] = m
+        if self.customization == "deliverable":
+            # the deliverable as it is: sample j of the period at phase 2π j / M, phase 0 where the period began
+            a_t, c = _fit_map(_on_curve(self.reference, TWO_PI * np.arange(m) / m), period, "deliverable")
+        else:
+            anchor = "start" if self.count.value == 0 else "mean"
+            iterations = _FIRST_ITERATIONS if anchor == "start" else _ITERATIONS
+            a_t, c = _anchored_map(self.reference, period, phases, self.customization, anchor, iterations)
+        positions = self._curve @ a_t + c
+        behind = _on_curve(self.reference, self._phases - TWO_PI * self.dt / duration) @ a_t + c
+        self.positions.value[...] = positions
+        self.velocities.value[...] = (positions - behind) / self.dt
+        self.length.value[...] = self.grid
+        self.duration.value[...] = duration
         self.count.value[...] = count

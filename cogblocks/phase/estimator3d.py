@@ -48,16 +48,23 @@ class PhaseEstimator3D(Diagram):
         The reference motion γ_ref, one cycle from phase 0, in mm.
     h, capacity, start_speed, match_ratio, min_period_fraction
         See :class:`PeriodEstimator`.
-    search, window, jump_factor, distance_floor, velocity_weight
-        See :class:`PhaseComputer`.
+    search, window, jump_factor, distance_floor, velocity_weight, extrapolate, amplitude_range
+        See :class:`PhaseComputer`; ``amplitude_range`` is 1.3 by default, 1 (the deliverable's
+        distance) with ``customization="deliverable"``.
     velocity : {"difference", "kalman"}
         Backward differences of the raw position (default) or the Kalman front end above.
     kalman_model : {"cv", "ca"}
         Model of that Kalman filter (``"ca"`` by default); unused with ``velocity="difference"``.
     customization : {"affine", "deliverable"}
-        How the reference is fitted to each period (see :func:`customize_reference`): a
-        least-squares linear map (default; any rotation and scale), or the deliverable's per-axis
-        scale then rotation, for reproduction.
+        The family of the map that fits the reference to each period (see
+        :func:`customize_reference`): a least-squares linear map (default; any rotation and scale),
+        or the deliverable's per-axis scale then rotation, for reproduction.
+    grid : int, optional
+        Phase grid of the customised reference (see :class:`ReferenceCustomizer`).
+
+    Notes on units: every rule about time is given in seconds and converted with the step (``h``,
+    ``window``, ``velocity_weight``), so that the estimator behaves the same at 30 and 240 Hz; the
+    phase is anchored to the reference's phase coordinate (see :func:`anchored_reference`).
 
     Notes
     -----
@@ -70,19 +77,22 @@ class PhaseEstimator3D(Diagram):
         self,
         reference: Any,
         *,
-        h: int = 10,
-        capacity: int = 1000,
+        h: float = 0.1,
+        capacity: int = 2400,
         start_speed: float = 50.0,
         match_ratio: float = 0.3,
         min_period_fraction: float = 0.7,
         search: str = "warm",
-        window: int = 10,
+        window: float = 0.1,
         jump_factor: float = 3.0,
         distance_floor: float = 5.0,
-        velocity_weight: float | None = None,
+        velocity_weight: float = 0.01,
+        extrapolate: float = 0.5,
+        amplitude_range: float | None = None,
         velocity: str = "difference",
         kalman_model: str = "ca",
         customization: str = "affine",
+        grid: int | None = None,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -103,7 +113,7 @@ class PhaseEstimator3D(Diagram):
                 min_period_fraction=min_period_fraction,
             ),
         )
-        customizer = self.add("customizer", ReferenceCustomizer(reference, customization=customization))
+        customizer = self.add("customizer", ReferenceCustomizer(reference, customization=customization, grid=grid))
         phase = self.add(
             "phase",
             PhaseComputer(
@@ -112,15 +122,23 @@ class PhaseEstimator3D(Diagram):
                 jump_factor=jump_factor,
                 distance_floor=distance_floor,
                 velocity_weight=velocity_weight,
+                extrapolate=extrapolate,
+                # the deliverable's distance with its customizer: the reproduction stays the deliverable's
+                amplitude_range=(1.0 if customization == "deliverable" else 1.3)
+                if amplitude_range is None
+                else amplitude_range,
             ),
         )
         self.connect(estimator.last_period, customizer.last_period)
+        self.connect(estimator.last_phases, customizer.last_phases)
         self.connect(estimator.last_length, customizer.last_length)
+        self.connect(estimator.last_duration, customizer.last_duration)
         self.connect(estimator.period_count, customizer.period_count)
         self.connect(customizer.positions, phase.positions)
         self.connect(customizer.velocities, phase.velocities)
         self.connect(customizer.length, phase.length)
         self.connect(customizer.count, phase.count)
+        self.connect(customizer.duration, phase.duration)
         self.connect(phase.theta, estimator.theta)
         self.connect(phase.valid, estimator.valid)
         if velocity == "kalman":

@@ -62,3 +62,49 @@ def test_generator_speed_wobble_makes_the_speed_uneven_within_a_cycle():
     assert speed.max() / speed.min() == pytest.approx(1.3 / 0.7, rel=0.05)
     steady_speed = np.diff(np.unwrap(steady.phase))
     assert steady_speed.max() / steady_speed.min() < 1.05
+
+
+def wobbly_period(m=181, wobble=0.25):
+    """One cycle of ``figure`` rotated by 150° and scaled, sampled evenly in time with the speed ±25 % in phase."""
+    from scipy.integrate import cumulative_trapezoid
+
+    grid = np.linspace(0.0, TWO_PI, 4001)
+    time = cumulative_trapezoid(1.0 / (1.0 + wobble * np.cos(grid + 1.0)), grid, initial=0.0)
+    phases = np.interp(np.arange(m) * time[-1] / m, time, grid)  # true phase of each sample
+    rotation = Rotation.from_rotvec(np.radians(150.0) * np.array([0.3, -0.5, 0.81]) / 1.0).as_matrix()
+    transform = np.diag([1.2, 0.7, 1.1]) @ rotation.T
+    return phases, figure(phases) @ transform + [50.0, 400.0, 900.0], transform
+
+
+def test_anchored_reference_needs_no_even_speed():
+    from cogblocks.phase.customizer import anchored_reference
+
+    reference = figure(TWO_PI * np.arange(400) / 400)
+    phases, period, transform = wobbly_period()
+    even = TWO_PI * np.arange(len(period)) / len(period)  # the first period's phases: even in time
+    assert np.abs(even - phases).max() > 0.2
+    a_t, c = anchored_reference(reference, period, even, anchor="start", iterations=32)
+    # the nearest points re-estimate the phases (each pass removes ~15 % of the error): the fitted curve
+    # is the true one, phase for phase
+    grid = TWO_PI * np.arange(90) / 90
+    truth = figure(grid) @ transform + [50.0, 400.0, 900.0]
+    np.testing.assert_allclose(figure(grid) @ a_t + c, truth, atol=0.5)
+    a_once, c_once = anchored_reference(reference, period, even, anchor="start", iterations=0)
+    assert np.abs(figure(grid) @ a_once + c_once - truth).max() > 5.0  # the fit by sample count alone is off
+
+
+def test_anchored_reference_keeps_the_given_phase_origin_on_average():
+    from cogblocks.phase.customizer import anchored_reference
+
+    reference = figure(TWO_PI * np.arange(400) / 400)
+    phases, period, _ = wobbly_period()
+    a_t, c = anchored_reference(reference, period, phases + 0.05, anchor="mean")
+    # the phases were 0.05 rad ahead of the truth: on the fitted curve the samples still are, on average,
+    # up to the part of a phase shift no linear map can mimic (here about a fifth of it): an error of the
+    # given phases is kept or reduced, never amplified
+    fine = TWO_PI * np.arange(20000) / 20000
+    curve = figure(fine) @ a_t + c
+    nearest = fine[np.argmin(((period[:, None, :] - curve[None, :, :]) ** 2).sum(axis=2), axis=1)]
+    assert 0.03 < np.mean(np.angle(np.exp(1j * (nearest - phases)))) <= 0.05
+    with pytest.raises(ValueError, match=r"anchored_reference: phases must have shape \(181\), got \(180,\)"):
+        anchored_reference(reference, period, phases[:-1])

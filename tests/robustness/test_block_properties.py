@@ -365,10 +365,9 @@ ALGORITHM1 = {
 
 
 def period_kwargs(draw) -> dict:
-    h = draw(st.integers(2, 5))
     return {
-        "h": h,
-        "capacity": draw(st.integers(2 * h + 3, 60)),
+        "h": draw(st.floats(0.02, 0.05)),  # s: 2-5 samples at the harness's 10 ms step
+        "capacity": draw(st.integers(13, 60)),
         "start_speed": draw(st.floats(0.0, 200.0)),
         "match_ratio": draw(st.floats(0.05, 1.0)),
         "min_period_fraction": draw(st.floats(0.0, 0.95)),
@@ -378,10 +377,12 @@ def period_kwargs(draw) -> dict:
 def search_kwargs(draw) -> dict:
     return {
         "search": draw(st.sampled_from(["warm", "full"])),
-        "window": draw(st.integers(1, 5)),
+        "window": draw(st.floats(0.01, 0.5)),
         "jump_factor": draw(st.floats(1.01, 10.0)),
         "distance_floor": draw(st.floats(0.0, 20.0)),
-        "velocity_weight": draw(st.none() | st.floats(0.0, 0.1)),
+        "velocity_weight": draw(st.floats(0.0, 0.1)),
+        "extrapolate": draw(st.floats(0.0, 1.0)),
+        "amplitude_range": draw(st.floats(1.0, 2.0)),
     }
 
 
@@ -878,13 +879,15 @@ register(
 )
 register(
     ReferenceCustomizer,
-    st.tuples(st.builds(ReferenceCustomizer, curve()), st.integers(2, 40)).map(lambda bc: fed_as(bc[0], (bc[1], 3))),
+    st.tuples(st.builds(ReferenceCustomizer, curve()), st.integers(4, 40)).map(lambda bc: fed_as(bc[0], (bc[1], 3))),
     lambda b: {
         "last_period": floats(b.test_shape, "mm", scale=150.0),
+        "last_phases": floats(b.test_shape[:1], "rad", scale=3.0, offset=3.0),
         "last_length": ints(lambda n: int_list(n, 2, b.test_shape[0])),
+        "last_duration": floats((), "s", scale=1.0, offset=2.0),
         "period_count": ints(counter),
     },
-    ["last_period"],
+    ["last_period", "last_phases", "last_duration"],
 )
 
 
@@ -909,6 +912,7 @@ register(
         "velocities": floats(b.test_shape, "mm/s", scale=500.0),
         "length": ints(lambda n: int_list(n, 2, 40)),
         "count": ints(counter),
+        "duration": floats((), "s", scale=1.0, offset=2.0),
     },
     ["p", "v", "positions", "velocities"],
     # "a tick with a non-finite position or velocity holds the last phase"

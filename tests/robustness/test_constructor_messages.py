@@ -120,8 +120,11 @@ PASS_THROUGH: dict[str, dict[str, str]] = {
     "PhaseEstimator3D": dict.fromkeys(
         ("h", "capacity", "start_speed", "match_ratio", "min_period_fraction"), "PeriodEstimator"
     )
-    | dict.fromkeys(("search", "window", "jump_factor", "distance_floor", "velocity_weight"), "PhaseComputer")
-    | {"customization": "ReferenceCustomizer"},
+    | dict.fromkeys(
+        ("search", "window", "jump_factor", "distance_floor", "velocity_weight", "extrapolate", "amplitude_range"),
+        "PhaseComputer",
+    )
+    | {"customization": "ReferenceCustomizer", "grid": "ReferenceCustomizer"},
     "LibraryProjector": dict.fromkeys(("metric", "dtype"), "PrefixProjection"),
     "L2Amplification": {"candidates": "LibraryProjector"},
 }
@@ -291,17 +294,21 @@ CASES = [
     case("Algorithm1Phase", "max_coast", math.nan, "(0.0, inf)"),
     case("PhaseEstimator", "spike_factor", 0.0, "(0.0, inf)"),
     case("ReferenceCustomizer", "customization", "rigid", "one of ['affine', 'deliverable']"),
+    case("ReferenceCustomizer", "grid", 4, "integer >= 8"),
+    case("PhaseEstimator3D", "grid", 4, "integer >= 8"),
     case("PhaseEstimator3D", "velocity", "spline", "one of ['difference', 'kalman']"),
     case("PhaseEstimator3D", "kalman_model", "cj", "one of ['cv', 'ca']"),
     # 3D phase
-    case("PeriodEstimator", "h", 1, "integer >= 2"),
-    case("PeriodEstimator", "capacity", 5, "integer >= 23"),
+    case("PeriodEstimator", "h", 10, "(0.0, 1.0]"),
+    case("PeriodEstimator", "capacity", 5, "integer >= 10"),
     case("PeriodEstimator", "start_speed", -1.0, "[0.0, inf)"),
     case("PeriodEstimator", "match_ratio", 0.0, "(0.0, 1.0]"),
     case("PeriodEstimator", "min_period_fraction", 1.0, "[0.0, 1.0)"),
     case("ReferenceCustomizer", "reference", [[0.0, 0.0]], "shape (any, 3)", given="(1, 2)"),
     case("PhaseComputer", "search", "fast", "one of ['warm', 'full']"),
-    case("PhaseComputer", "window", 0, "integer >= 1"),
+    case("PhaseComputer", "window", 0, "(0.0, 1.0]"),
+    case("PhaseComputer", "extrapolate", -1.0, "[0.0, inf)"),
+    case("PhaseComputer", "amplitude_range", 0.5, "[1.0, inf)"),
     case("PhaseComputer", "jump_factor", 1.0, "(1.0, inf)"),
     case("PhaseComputer", "distance_floor", -1.0, "[0.0, inf)"),
     case("PhaseComputer", "velocity_weight", -0.01, "[0.0, inf)"),
@@ -312,13 +319,13 @@ CASES = [
         "shape (any, 3)",
         given="(1, 2)",
     ),
-    case("PhaseEstimator3D", "h", 1, "integer >= 2"),
-    case("PhaseEstimator3D", "capacity", 5, "integer >= 23"),
+    case("PhaseEstimator3D", "h", 10, "(0.0, 1.0]"),
+    case("PhaseEstimator3D", "capacity", 5, "integer >= 10"),
     case("PhaseEstimator3D", "start_speed", -1.0, "[0.0, inf)"),
     case("PhaseEstimator3D", "match_ratio", 2.0, "(0.0, 1.0]"),
     case("PhaseEstimator3D", "min_period_fraction", -0.5, "[0.0, 1.0)"),
     case("PhaseEstimator3D", "search", "fast", "one of ['warm', 'full']"),
-    case("PhaseEstimator3D", "window", 0, "integer >= 1"),
+    case("PhaseEstimator3D", "window", 0, "(0.0, 1.0]"),
     case("PhaseEstimator3D", "jump_factor", 0.5, "(1.0, inf)"),
     case("PhaseEstimator3D", "distance_floor", -1.0, "[0.0, inf)"),
     case("PhaseEstimator3D", "velocity_weight", -1.0, "[0.0, inf)"),
