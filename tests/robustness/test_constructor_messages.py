@@ -370,7 +370,9 @@ CASES = [
     case("OptimalBlender", "end_speed", -1.0, "[0.0, inf)"),
     case("OptimalBlender", "knot_spacing", 0, "integer >= 1"),
     case("OptimalBlender", "time_limit_ms", 0.0, "(0.0, inf)"),
-    case("OptimalBlender", "solver", "bonmin", "one of ['sqpmethod', 'ipopt']"),
+    case("OptimalBlender", "solver", "bonmin", "one of ['sqpmethod', 'ipopt', 'linearised']"),
+    case("OptimalBlender", "subspace", 5, "subspace must be a MovementSubspace", given="int"),
+    case("OptimalBlender", "realism", -1.0, "[0.0, inf)"),
     case("OptimalBlender", "sharpness", math.inf, "(0.0, inf)"),
     case("OptimalBlender", "rest_speed", -1.0, "[0.0, inf)"),
 ]
