@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from cogblocks.blocks.angles import TWO_PI
-from cogblocks.blocks.samples import PLAUSIBLE, plausible
+from cogblocks.blocks.samples import MEASURABLE, PLAUSIBLE, plausible
 from cogblocks.blocks.specs import COUNT
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
@@ -140,7 +140,7 @@ def _fit_map(q: np.ndarray, per: np.ndarray, customization: str) -> tuple[np.nda
         a_t, *_ = np.linalg.lstsq(q, p, rcond=None)  # q @ a_t ≈ p
     else:
         sd_ref, sd_per = q.std(axis=0), p.std(axis=0)
-        moving = sd_ref > _DEGENERATE * max(float(sd_ref.max()), 1.0)
+        moving = sd_ref > _DEGENERATE * float(sd_ref.max())  # relative: the same in any unit
         scale = np.ones(3)
         scale[moving] = sd_per[moving] / sd_ref[moving]
         a_t = scale[:, None] * kabsch_rotation(q * scale, p).T
@@ -291,8 +291,8 @@ class ReferenceCustomizer(Block):
 
     Notes
     -----
-    Bad data policy: a period with fewer than 4 samples, a non-finite or implausible (beyond 1 km)
-    coordinate or phase, or a duration that is not a positive finite number is not fitted; the
+    Bad data policy: a period with fewer than 4 samples, a non-finite coordinate or phase, or one beyond
+    1e100 (a corrupted number in any unit), or a duration that is not a positive finite number is not fitted; the
     previous customised reference holds.
     """
 
@@ -335,7 +335,8 @@ class ReferenceCustomizer(Block):
         m = int(self.last_length.value)
         duration = float(self.last_duration.value)
         period, phases = self.last_period.value[:m], self.last_phases.value[:m]
-        if m < 4 or not (plausible(period) and plausible(phases) and 0.0 < duration < PLAUSIBLE):
+        usable = plausible(period, MEASURABLE) and plausible(phases, MEASURABLE)
+        if m < 4 or not (usable and 0.0 < duration < PLAUSIBLE):
             return
         if self.customization == "deliverable":
             # the deliverable as it is: sample j of the period at phase 2π j / M, phase 0 where the period began
