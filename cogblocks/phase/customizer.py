@@ -189,7 +189,9 @@ def anchored_reference(
     ``φ_j`` the phase of sample ``j``, rather than on the reference resampled to the period's sample
     count, so that neither a speed that varies within the cycle nor a frozen stretch distorts it.
     The phases are then re-estimated geometrically, as the nearest point of each sample on the
-    fitted curve (which does not depend on the speed), and the fit repeated ``iterations`` times.
+    fitted curve (which does not depend on the speed), and the fit repeated up to ``iterations``
+    times: it stops when the phases move by less than 1e-4 rad on average; with ``anchor="start"``
+    every second move is extrapolated by Aitken's rule (the moves shrink geometrically).
     A linear map can mimic a constant phase shift of an elliptic curve, so the geometry does not fix
     the phase origin: ``anchor`` does. ``"start"`` keeps the phase of the period's first sample
     (the start of the motion, phase 0 by assumption 3); ``"mean"`` keeps the given phases on
@@ -209,7 +211,7 @@ def anchored_reference(
     anchor : {"start", "mean"}
         What fixes the phase origin.
     iterations : int
-        Geometric re-estimations of the phases (>= 0).
+        Most geometric re-estimations of the phases (>= 0).
 
     Returns
     -------
