@@ -16,6 +16,12 @@ trajectories are sampled with ``N`` samples per nominal cycle (clean: no noise, 
 ticks after the first period count (before it there is nothing to search). Prints one JSON object
 per line, the warm search's percentile with the full search's as reference;
 ``ratio = value / reference``.
+
+The tick on which a period completes also fits the reference to it (:func:`anchored_reference`).
+Its cost is timed on 30 s of the harder set (``MOTION3D_SETS["harder"]``, first trajectory of
+``SeedSequence(0)``) at 100 and 240 Hz, with the estimator's defaults: the first period's fitting
+tick, the median of the later ones (``reference``: the median of the other ticks) and the
+percentiles of the other ticks after the first period.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from cogblocks.data.motion3d import generate_motion3d
+from cogblocks.diagrams.phase3d import MOTION3D_SETS
 from cogblocks.phase import PhaseEstimator3D
 
 SIZES = (200, 2000, 20000)
@@ -76,8 +83,62 @@ def _tick_latencies(n_reference: int, search: str, n_measured: int) -> np.ndarra
     return times / 1e3
 
 
+def _fit_tick_latencies(rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Microseconds of each tick of 30 s of the harder set after the first period, and whether it fitted a period."""
+    child = np.random.SeedSequence(0).spawn(1)[0]
+    motion = generate_motion3d(np.random.default_rng(child), duration=30.0, dt=1.0 / rate_hz, **MOTION3D_SETS["harder"])
+    estimator = PhaseEstimator3D(motion.reference)
+    compiled = estimator.compile(motion.dt)
+    count = estimator.blocks["customizer"].count  # the customised reference's period counter: changes on a fit
+    times, fitted = np.empty(len(motion.t)), np.zeros(len(motion.t), dtype=bool)
+    clock = time.thread_time_ns
+    gc.disable()
+    try:
+        for i, p in enumerate(motion.position):
+            before = int(count.value)
+            start = clock()
+            compiled.step(p=p)
+            times[i] = clock() - start
+            fitted[i] = int(count.value) != before
+    finally:
+        gc.enable()
+    first = int(np.argmax(fitted))
+    return times[first:] / 1e3, fitted[first:]
+
+
+def run_fit_ticks() -> Iterator[dict]:
+    """The period-completing ticks' cost against the other ticks', at 100 and 240 Hz."""
+    for rate in (100, 240):
+        times, fitted = _fit_tick_latencies(rate)
+        other = times[~fitted]
+        normal = float(np.median(other))
+        figures = {
+            "first_fit": float(times[0]),
+            "fit.p50": float(np.median(times[1:][fitted[1:]])),
+            "fit.max": float(times[1:][fitted[1:]].max()),
+            "other.p99": float(np.percentile(other, 99)),
+        }
+        yield {
+            "name": f"phase3d.latency.{rate}hz.other.p50",
+            "value": normal,
+            "unit": "us",
+            "reference": normal,
+            "ratio": 1.0,
+        }
+        for stat, value in figures.items():
+            yield {
+                "name": f"phase3d.latency.{rate}hz.{stat}",
+                "value": value,
+                "unit": "us",
+                "reference": normal,
+                "ratio": value / normal,
+                "n_fits": int(fitted.sum()),
+            }
+
+
 def run(quick: bool = False) -> Iterator[dict]:
-    """Time the warm and the full search for each reference size; yield the warm figures."""
+    """Time the warm and the full search for each reference size; yield the warm figures; then the fitting ticks."""
+    yield from run_fit_ticks()
     n_measured = 300 if quick else 3000
     for n in SIZES:
         warm = _tick_latencies(n, "warm", n_measured)

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from cogblocks.blocks.angles import TWO_PI
-from cogblocks.blocks.samples import plausible
+from cogblocks.blocks.samples import MEASURABLE, plausible
 from cogblocks.blocks.specs import COUNT, FLAG, PHASE, POSITION, VELOCITY
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of
@@ -37,8 +37,10 @@ class PhaseComputer(Block):
     search is run instead when there is no previous index on this reference (the first tick and
     every time a new customised reference arrives), when the window's minimum lies on its edge
     (the true minimum may be beyond it), and when the window's best distance exceeds
-    ``jump_factor · max(D, distance_floor)``, ``D`` being the distance found by the last full
-    search (the motion has left the neighbourhood: a drop-out, a jump). On clean data, where the
+    ``jump_factor · max(D, distance_floor · σ)``, ``D`` being the distance found by the last full
+    search (the motion has left the neighbourhood: a drop-out, a jump) and ``σ`` the customised
+    reference's spread (root mean square distance of its rows from ``c̄``), so that the rule is
+    the same in mm, m or sensor counts. On clean data, where the
     nearest sample moves by about one index per tick, the warm search returns the full search's
     index.
 
@@ -67,7 +69,8 @@ class PhaseComputer(Block):
     jump_factor : float
         Fall back to a full search when the distance grows beyond this multiple (> 1).
     distance_floor : float
-        Smallest reference distance of the jump rule, in mm (>= 0): noise alone must not trigger it.
+        Smallest reference distance of the jump rule, in spreads of the customised reference (>= 0;
+        0.04, 5 mm on the 120 mm spread of the synthetic primitive): noise alone must not trigger it.
     velocity_weight : float
         ``τ`` in s (>= 0; 0.01 s by default).
     extrapolate : float
@@ -82,8 +85,8 @@ class PhaseComputer(Block):
     up to ``extrapolate`` seconds, then holds; the next moving sample is searched afresh (a full
     search, as after any jump).
 
-    Bad data policy: a tick with a non-finite or implausible (beyond 1 km, or 1 km/s) position or velocity
-    holds the last phase; so does a tick whose nearest reference row is not finite (an implausible row
+    Bad data policy: a tick with a non-finite position or velocity, or one beyond 1e100 (a corrupted number
+    in any unit), holds the last phase; so does a tick whose nearest reference row is not finite (an implausible row
     overflows to an infinite distance and is never the nearest).
     """
 
@@ -93,7 +96,7 @@ class PhaseComputer(Block):
         search: str = "warm",
         window: float = 0.1,
         jump_factor: float = 3.0,
-        distance_floor: float = 5.0,
+        distance_floor: float = 0.04,
         velocity_weight: float = 0.01,
         extrapolate: float = 0.5,
         amplitude_range: float = 1.3,
@@ -123,7 +126,7 @@ class PhaseComputer(Block):
         self.add_state("frozen", 0)  # ticks the position has been repeated exactly
         self._next = (-1, 0, 0.0)
         self._next_frozen = 0
-        self._centre_of, self._centre_value = -1, np.zeros(3)  # a cache, not state: it follows the inputs
+        self._centre_of, self._centre_value, self._spread = -1, np.zeros(3), 0.0  # a cache: it follows the inputs
 
     def setup(self) -> None:
         shape = self.positions.spec.shape
@@ -135,11 +138,14 @@ class PhaseComputer(Block):
         self._tau2 = self.velocity_weight**2
 
     def _centre(self, m: int) -> np.ndarray:
-        """The customised reference's centroid, computed once per reference (the warm search stays O(window))."""
+        """The customised reference's centroid (and spread), computed once per reference (the warm search stays
+        O(window))."""
         count = int(self.count.value)
         if count != self._centre_of:
             with np.errstate(over="ignore", invalid="ignore"):
-                self._centre_value = self.positions.value[:m].mean(axis=0)
+                rows = self.positions.value[:m]
+                self._centre_value = rows.mean(axis=0)
+                self._spread = float(np.sqrt(((rows - self._centre_value) ** 2).sum(axis=1).mean()))
             self._centre_of = count
         return self._centre_value
 
@@ -161,7 +167,7 @@ class PhaseComputer(Block):
     def output(self, k: int) -> None:
         self._next = (self.index, self.ref_count, self.full_distance)
         count = int(self.count.value)
-        if count == 0 or not (plausible(self.p.value) and plausible(self.v.value)):
+        if count == 0 or not (plausible(self.p.value, MEASURABLE) and plausible(self.v.value, MEASURABLE)):
             return
         m = int(self.length.value)
         duration = float(self.duration.value)
@@ -178,7 +184,7 @@ class PhaseComputer(Block):
             rows = (self.index + np.arange(-w, w + 1)) % m
             d2 = self._squared_distance(rows, m)
             j = int(np.argmin(d2))
-            limit = self.jump_factor * max(self.full_distance, self.distance_floor)
+            limit = self.jump_factor * max(self.full_distance, self.distance_floor * self._spread)
             if 0 < j < 2 * w and d2[j] <= limit * limit:
                 self._emit(int(rows[j]), m, count, self.full_distance, d2[j - 1 : j + 2])
                 return
@@ -200,5 +206,5 @@ class PhaseComputer(Block):
     def update(self, k: int) -> None:
         self.index, self.ref_count, self.full_distance = self._next
         self.frozen = self._next_frozen
-        if plausible(self.p.value):
+        if plausible(self.p.value, MEASURABLE):
             self.last_p[...] = self.p.value

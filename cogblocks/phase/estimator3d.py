@@ -34,7 +34,7 @@ class PhaseEstimator3D(Diagram):
 
     Ports
     -----
-    p : input, shape (3,), mm
+    p : input, shape (3,), mm (or any unit)
         Position of the tracked point.
     theta : output, rad, wrapped
         Estimated phase in ``[0, 2π)``, 0 at the start of the reference motion; held at 0 while
@@ -63,13 +63,18 @@ class PhaseEstimator3D(Diagram):
         Phase grid of the customised reference (see :class:`ReferenceCustomizer`).
 
     Notes on units: every rule about time is given in seconds and converted with the step (``h``,
-    ``window``, ``velocity_weight``), so that the estimator behaves the same at 30 and 240 Hz; the
-    phase is anchored to the reference's phase coordinate (see :func:`anchored_reference`).
+    ``window``, ``velocity_weight``), so that the estimator behaves the same at 30 and 240 Hz; every
+    rule about amplitude is relative to the signal's own scale (``start_speed`` to the spread of the
+    samples before the motion, ``distance_floor`` to the customised reference's spread), so that with
+    ``velocity="difference"`` the same motion in mm, m or sensor counts gives the same phase. The
+    reference may be in other units than the positions: the fitted map absorbs the scale. The Kalman
+    front end's noise defaults are in mm (not unit-free). The phase is anchored to the reference's
+    phase coordinate (see :func:`anchored_reference`).
 
     Notes
     -----
-    Bad data policy: a non-finite or implausible (beyond 1 km) sample gives a bad velocity inside,
-    on which the period estimator skips the sample and the phase computer holds the phase; with
+    Bad data policy: a non-finite sample, or one beyond 1e100 (a corrupted number in any unit), gives a bad
+    velocity inside, on which the period estimator skips the sample and the phase computer holds the phase; with
     ``velocity="kalman"`` the filter predicts through it instead. ``theta`` is never NaN.
     """
 
@@ -79,13 +84,13 @@ class PhaseEstimator3D(Diagram):
         *,
         h: float = 0.1,
         capacity: int = 2400,
-        start_speed: float = 50.0,
+        start_speed: float = 1.0,
         match_ratio: float = 0.3,
         min_period_fraction: float = 0.7,
         search: str = "warm",
         window: float = 0.1,
         jump_factor: float = 3.0,
-        distance_floor: float = 5.0,
+        distance_floor: float = 0.04,
         velocity_weight: float = 0.01,
         extrapolate: float = 0.5,
         amplitude_range: float | None = None,

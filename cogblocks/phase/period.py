@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from cogblocks.blocks.angles import TWO_PI
-from cogblocks.blocks.samples import plausible
+from cogblocks.blocks.samples import MEASURABLE, plausible
 from cogblocks.blocks.specs import COUNT, FLAG, PHASE, POSITION
 from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number, positive_int
@@ -35,8 +35,11 @@ class PeriodEstimator(Block):
     period by phase rather than by sample count (the phase coordinate stays tied to the motion).
 
     *Start.* Recording starts at the first sample ``p(k)`` whose speed
-    ``‖p(k) − p(k−1)‖ / dt`` exceeds ``start_speed``; the sample before it, where the motion began,
-    is the first one recorded (``k_P1 = k − 1``).
+    ``‖p(k) − p(k−1)‖ / dt`` exceeds ``start_speed · σ(k−1)``, ``σ(k−1)`` the spread of the samples
+    before it (the root mean square distance from their mean: the signal's own scale, so the rule is
+    the same in mm, m or sensor counts); the sample before it, where the motion began, is the first
+    one recorded (``k_P1 = k − 1``). A motion that starts with the recording (σ = 0) starts at its
+    first moving sample; on a hand at rest the spread is the sensor noise's.
 
     *First period.* With ``H`` the segment ``h`` in samples (:func:`segment_samples`), the first
     segment ``a = k_P1 … k_P1 + H − 1`` and the latest one ``b = k − H + 1 … k``, the segment
@@ -93,7 +96,7 @@ class PeriodEstimator(Block):
         Longest period in samples that can be recorded (>= 10; 2400 = 10 s at 240 Hz). It must hold
         ``2 H + 3`` samples at the step the block runs at.
     start_speed : float
-        Speed in mm/s above which the motion has started (>= 0).
+        Speed above which the motion has started, in spreads of the samples so far per second (>= 0).
     match_ratio : float
         Depth a local minimum of ``d`` must have, relative to its largest value so far, in (0, 1].
     min_period_fraction : float
@@ -105,8 +108,8 @@ class PeriodEstimator(Block):
     fills before the first period is found, the search restarts from the next fast sample; if it
     fills during a later period (a missed wrap at a high rate), that period is dropped and
     recording starts again at the next wrap; the phase is unaffected, it goes on from the last
-    customised reference. Bad data policy: a sample with a non-finite or implausible (beyond 1 km)
-    coordinate is skipped.
+    customised reference. Bad data policy: a sample with a non-finite coordinate, or one beyond 1e100
+    (a corrupted number in any unit), is skipped.
     """
 
     def __init__(
@@ -114,7 +117,7 @@ class PeriodEstimator(Block):
         *,
         h: float = 0.1,
         capacity: int = 2400,
-        start_speed: float = 50.0,
+        start_speed: float = 1.0,
         match_ratio: float = 0.3,
         min_period_fraction: float = 0.7,
         period: float | None = None,
@@ -140,6 +143,9 @@ class PeriodEstimator(Block):
         self.add_state("tick", 0)
         self.add_state("previous", np.zeros(3))
         self.add_state("has_previous", False)
+        self.add_state("rest_count", 0)  # samples seen while waiting, their mean and summed squared distance (Welford)
+        self.add_state("rest_mean", np.zeros(3))
+        self.add_state("rest_m2", 0.0)
         self.add_state("recording", np.zeros((cap, 3)))
         self.add_state("tags", np.zeros(cap))
         self.add_state("n", 0)
@@ -176,7 +182,7 @@ class PeriodEstimator(Block):
     def update(self, k: int) -> None:
         self.tick += 1
         p = self.p.value
-        if not plausible(p):
+        if not plausible(p, MEASURABLE):
             return
         if self.stage == _WAITING:
             self._wait_for_motion(p)
@@ -188,17 +194,27 @@ class PeriodEstimator(Block):
         self.has_previous = True
 
     def _wait_for_motion(self, p: np.ndarray) -> None:
-        if self.has_previous and math.dist(p, self.previous) > self.start_speed * self.dt:
+        if self.has_previous and math.dist(p, self.previous) > self.start_speed * self.dt * self._spread():
             self.recording[0] = self.previous
             self.recording[1] = p
             self.n = 2
             self.n_d[...] = 0
             self.d_max[...] = 0.0
             self.stage = _FIRST
+            return
+        self.rest_count += 1
+        step = p - self.rest_mean
+        self.rest_mean += step / self.rest_count
+        self.rest_m2 += float(step @ (p - self.rest_mean))
+
+    def _spread(self) -> float:
+        """Root mean square distance of the samples seen while waiting from their mean (0 for one sample)."""
+        return math.sqrt(self.rest_m2 / self.rest_count) if self.rest_count else 0.0
 
     def _first_period(self, p: np.ndarray) -> None:
         if self.n == self.capacity:
             self.stage = _WAITING
+            self.rest_count, self.rest_m2 = 0, 0.0  # the next moving sample starts afresh
             return
         rec, h = self.recording, self._h
         rec[self.n] = p
