@@ -116,9 +116,14 @@ class DQNPolicy:
         return cls(network)
 
     @classmethod
-    def default(cls) -> DQNPolicy:
-        """Policy with the weights shipped in ``cogblocks/data/weights/sync_dqn.pt``."""
-        with resources.as_file(resources.files("cogblocks.data") / "weights" / "sync_dqn.pt") as path:
+    def default(cls, weights: str = "sync_dqn.pt") -> DQNPolicy:
+        """Policy with weights shipped in ``cogblocks/data/weights``.
+
+        ``"sync_dqn.pt"`` (the default) is the network trained on randomised groups and selected on the
+        validation split; ``"sync_dqn_table2.pt"`` the deliverable's 3-input network trained and selected
+        on Table 2's three groups (``python -m cogblocks.training.sync_dqn --seed 0`` without ``--randomised``).
+        """
+        with resources.as_file(resources.files("cogblocks.data") / "weights" / weights) as path:
             return cls.from_file(path)
 
     def reset(self, omega_init: float) -> None:
