@@ -57,7 +57,7 @@ def _mpc_motion(group: SyncGroup) -> Block:
 
 
 #: Motion computers available by name: each builds a fresh block for a group.
-#: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --seed 0``),
+#: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --randomised --seed 0``),
 #: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
 #: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 3 s
 #: every 0.5 s with casadi on a model it identifies online. Add an entry to make a policy available to

@@ -82,6 +82,8 @@ class L3Context:
         The blender's threshold λ of this tick.
     omega_prev : float
         The virtual oscillator's frequency at the previous tick.
+    assisted : int or None
+        0-based index of the assisted participant, if the caller knows it.
     """
 
     k: int
@@ -90,6 +92,7 @@ class L3Context:
     theta_l3: float
     lam: float
     omega_prev: float
+    assisted: int | None = None
 
 
 class L3Policy(Protocol):
@@ -225,7 +228,7 @@ class MotionComputer(_MotionPorts):
             self.theta_l3 = wrap_angle(self.theta_l3 + self.dt * self.omega_prev)
             return
         obs = l3_observation(self.theta_l3, theta[self.others], self.omega_prev)
-        context = L3Context(k, obs, theta.copy(), self.theta_l3, lam, self.omega_prev)
+        context = L3Context(k, obs, theta.copy(), self.theta_l3, lam, self.omega_prev, self.assisted)
         action = self.policy.act(context)
         omega = min(max(self.omega_prev + ACTIONS[action], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
         pull = float(np.dot(self.coupling, np.sin(theta - self.theta_l3)))

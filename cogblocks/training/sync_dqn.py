@@ -313,6 +313,12 @@ def _parser() -> argparse.ArgumentParser:
         f"(default {DQNConfig.episodes}; {QUICK_CONFIG.episodes} with --quick)",
     )
     parser.add_argument(
+        "--randomised",
+        action="store_true",
+        help="train on randomised groups of the train split and select on the validation split "
+        "(cogblocks.training.sync_dqn_random; --episodes does not apply)",
+    )
+    parser.add_argument(
         "--quick",
         action="store_true",
         help="smoke test: 20 s episodes, fewer copies, rounds and checks (about a minute)",
@@ -323,7 +329,9 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> None:
     """Command-line entry point: train, report the selected network's evaluation and save its ``state_dict``."""
     args = _parser().parse_args(argv)
-
+    if args.randomised:
+        _main_randomised(args)
+        return
     config = QUICK_CONFIG if args.quick else DQNConfig()
     if args.episodes is not None:
         config = dataclasses.replace(config, episodes=args.episodes)
@@ -336,6 +344,23 @@ def main(argv: Sequence[str] | None = None) -> None:
     print(
         f"saved the network of episode {best['episode']:.2f} ({changes}) to {args.out.resolve()} "
         f"after {time.perf_counter() - started:.0f} s"
+    )
+
+
+def _main_randomised(args: argparse.Namespace) -> None:
+    from cogblocks.training.sync_dqn_random import QUICK_RANDOMISED, RandomisedConfig, train_randomised
+
+    if args.episodes is not None:
+        raise SystemExit("--episodes does not apply to --randomised training")
+    started = time.process_time()
+    result = train_randomised(QUICK_RANDOMISED if args.quick else RandomisedConfig(), args.seed)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(result.network.state_dict(), args.out)
+    best = result.history[result.best]
+    print(
+        f"saved the network of tick {best['tick']} (validation: lowered {best['lowered']}, mean "
+        f"{best['mean_change_pct']:+.3f} %, worst {best['worst_change_pct']:+.3f} %) to {args.out.resolve()} "
+        f"after {time.process_time() - started:.0f} CPU s"
     )
 
 

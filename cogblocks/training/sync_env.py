@@ -144,6 +144,7 @@ class SyncEnv:
             theta_l3=float(self.theta_l3[episode]),
             lam=float(self.lam[episode]),
             omega_prev=float(self.omega_prev[episode]),
+            assisted=self.model.assisted,
         )
 
     def _arrive(self) -> None:
