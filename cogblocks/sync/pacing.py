@@ -5,7 +5,9 @@ blender's λ dynamics in the loop, ``horizon`` seconds ahead for a set of candid
 whole horizon, all at once (NumPy, forward Euler at a coarse step):
 
 * *none*: θ_ref = θ_L0, which leaves the assisted participant's phase unaltered (the group runs as without L2);
-* *mean*: θ_ref = the circular mean of the others' phases (what :class:`MeanPhaseMotion` does);
+* *mean*: θ_ref = the circular mean of the others' phases (what :class:`MeanPhaseMotion` does), or *gated*:
+  only while it is within a gate g of θ_L0, θ_L0 otherwise (altering a participant who is nearly opposite
+  the others raises r little but still tightens λ; resting lets λ recover for when they come closer);
 * *pace*: θ_ref = φ + ω t, a constant frequency ω on a grid spanning the identified frequencies (and the
   frequency paced now), started from the current reference or from the others' circular mean.
 
@@ -28,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
-from cogblocks.sim.params import finite_number, one_of, positive_int
+from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
 from cogblocks.sync.coupling import Coupling, checked_graph
 from cogblocks.sync.identification import KuramotoRLS, usable_phases
 from cogblocks.sync.model import BlenderParams
@@ -69,9 +71,10 @@ def predicted_order(
         Index of the assisted participant.
     blender : BlenderParams
         The blender the references go through (hard clip, eqs. 3–6).
-    candidates : (kinds, omegas, anchors), each shape (C,)
-        Kind of each candidate (:data:`NONE`, :data:`MEAN` or :data:`PACE`); for *pace*, the frequency
-        (rad/s) and the reference's phase at the start (ignored for the other kinds).
+    candidates : (kinds, values, anchors), each shape (C,)
+        Kind of each candidate (:data:`NONE`, :data:`MEAN` or :data:`PACE`); its value: for *pace* the
+        frequency (rad/s), for *mean* the gate (rad; π: always the mean); for *pace* the reference's phase at
+        the start (anchors are ignored for the other kinds).
     step, steps : float, int
         Euler step (s) and number of steps.
 
@@ -80,7 +83,7 @@ def predicted_order(
     ndarray, shape (C,)
         The predicted mean of r over steps 0 … steps − 1 (the start included).
     """
-    kinds, omegas, anchors = (np.asarray(c) for c in candidates)
+    kinds, values, anchors = (np.asarray(c, dtype=float) for c in candidates)
     omega, gain = model
     n, count = len(theta), len(kinds)
     others = np.arange(n) != assisted
@@ -92,10 +95,11 @@ def predicted_order(
     for s in range(steps):
         sin, cos = np.sin(theta), np.cos(theta)
         l0 = theta[:, assisted]
-        ref = np.where(pace, anchors + omegas * (s * step), l0)
+        d = np.where(pace, wrap_pi(anchors + values * (s * step) - l0), 0.0)
         if mean.any():
-            ref = np.where(mean, np.arctan2(sin[:, others].sum(axis=1), cos[:, others].sum(axis=1)), ref)
-        shift = np.clip(wrap_pi(ref - l0), -lam, lam)
+            to_mean = wrap_pi(np.arctan2(sin[:, others].sum(axis=1), cos[:, others].sum(axis=1)) - l0)
+            d = np.where(mean & (np.abs(to_mean) <= values), to_mean, d)
+        shift = np.clip(d, -lam, lam)
         sin[:, assisted], cos[:, assisted] = np.sin(l0 + shift), np.cos(l0 + shift)
         total += np.hypot(sin.sum(axis=1), cos.sum(axis=1)) / n
         # eq. (5)-(6): λ relaxes toward λ∞(e), fast down (κ⁻), slow up (κ⁺)
@@ -137,6 +141,9 @@ class PacingMotion(_MotionPorts):
         Bound on the steps of one prediction (the cost of a decision).
     frequencies : int
         Pacing frequencies on the grid from min(ω̂) − 0.5 to max(ω̂) + 0.5 rad/s.
+    gates : sequence of float
+        Gates (rad, in (0, π]) of the *mean* candidates; π is the plain circular mean, which ``start="mean"``
+        follows.
     margin : float
         Predicted gain in mean r over *none* needed to alter the participant at all.
     switch_margin : float
@@ -154,9 +161,10 @@ class PacingMotion(_MotionPorts):
     are records since the last reset, not block state.
 
     Bad data policy: on a tick with a phase that is not finite and within one turn of [0, 2π), or a
-    non-finite λ, nothing is identified or decided (a decision due then is taken at the next good tick);
-    when pacing, θ_ref keeps integrating the paced frequency, otherwise it holds its last value. A finite λ
-    outside the blender's [λ_min, λ_max] is clipped to it.
+    non-finite λ, nothing is identified or decided (a decision due then is taken at the next good tick), and
+    no increment ending or starting there is identified. When pacing, θ_ref keeps integrating the paced
+    frequency; otherwise it holds its last value on a tick with a bad phase (a non-finite λ alone does not
+    stop it following θ_L0 or the mean). A finite λ outside the blender's [λ_min, λ_max] is clipped to it.
     """
 
     def __init__(
@@ -171,6 +179,7 @@ class PacingMotion(_MotionPorts):
         step: float = 0.05,
         max_steps: int = 600,
         frequencies: int = 16,
+        gates: Any = (math.pi, 2.0 * math.pi / 3.0, math.pi / 2.0),
         margin: float = 0.005,
         switch_margin: float = 0.002,
         start: str = "none",
@@ -189,6 +198,9 @@ class PacingMotion(_MotionPorts):
         self.step = finite_number(self, "step", step, low=0.0, low_open=True)
         self.max_steps = positive_int(self, "max_steps", max_steps)
         self.frequencies = positive_int(self, "frequencies", frequencies, minimum=2)
+        self.gates = finite_array(self, "gates", gates, ndim=1)
+        if not (len(self.gates) and np.all((self.gates > 0.0) & (self.gates <= math.pi))):
+            raise ValueError(f"PacingMotion: gates must be one or more angles in (0, π], got {gates!r}")
         self.margin = finite_number(self, "margin", margin, low=0.0)
         self.switch_margin = finite_number(self, "switch_margin", switch_margin, low=0.0)
         self.start = _MODES[one_of(self, "start", start, tuple(_MODES))]
@@ -197,7 +209,7 @@ class PacingMotion(_MotionPorts):
         self.rls = KuramotoRLS(self.adjacency)
         self.others = np.arange(n) != self.assisted
         self.add_state("mode", self.start)
-        self.add_state("pace_omega", 0.0)
+        self.add_state("value", math.pi)  # the paced frequency, or the mean's gate
         self.add_state("theta_ref_now", 0.0)
         self.add_state("due", True)
         self.add_state("count", 0)  # increments identified
@@ -215,10 +227,13 @@ class PacingMotion(_MotionPorts):
         """θ_ref of this tick for the current mode (``theta`` usable)."""
         if self.mode == PACE:
             return float(self.theta_ref_now)
+        l0 = float(theta[self.assisted])
         if self.mode == MEAN:
             others = theta[self.others]
-            return wrap_angle(math.atan2(np.sin(others).sum(), np.cos(others).sum()))
-        return float(theta[self.assisted])
+            centre = math.atan2(np.sin(others).sum(), np.cos(others).sum())
+            if abs(float(wrap_pi(centre - l0))) <= self.value:
+                return wrap_angle(centre)
+        return l0
 
     def output(self, k: int) -> None:
         theta = np.asarray(self.theta.value, dtype=float)
@@ -258,21 +273,24 @@ class PacingMotion(_MotionPorts):
                 self.due = False
                 return
         if self.mode == PACE:
-            self.theta_ref_now = wrap_angle(self.theta_ref_now + dt * self.pace_omega)
+            self.theta_ref_now = wrap_angle(self.theta_ref_now + dt * self.value)
 
     def candidates(self, theta_next: np.ndarray, ref: float, omega: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
-        """(kinds, frequencies, phases at the next tick) of the candidates, *none* first and *mean* second."""
+        """(kinds, values, phases at the next tick) of the candidates: *none*, the *mean*s (one per gate), *pace*s.
+
+        When pacing, the first *pace* candidate continues at the paced frequency from the current reference.
+        """
         grid = np.linspace(np.min(omega) - 0.5, np.max(omega) + 0.5, self.frequencies)
         if self.mode == PACE:
-            grid = np.r_[self.pace_omega, grid]
+            grid = np.r_[self.value, grid]
         grid = np.clip(grid, -OMEGA_L3_LIMIT, OMEGA_L3_LIMIT)
         others = theta_next[self.others]
         centre = math.atan2(np.sin(others).sum(), np.cos(others).sum())
-        m = len(grid)
-        kinds = np.r_[NONE, MEAN, np.full(2 * m, PACE)]
-        omegas = np.r_[0.0, 0.0, grid, grid]
-        anchors = np.r_[0.0, 0.0, ref + dt * grid, np.full(m, centre)]
-        return kinds, omegas, anchors
+        m, g = len(grid), len(self.gates)
+        kinds = np.r_[NONE, np.full(g, MEAN), np.full(2 * m, PACE)]
+        values = np.r_[0.0, self.gates, grid, grid]
+        anchors = np.r_[np.zeros(1 + g), ref + dt * grid, np.full(m, centre)]
+        return kinds, values, anchors
 
     def plan(
         self, theta: np.ndarray, seen: np.ndarray, lam: float, ref: float, model: tuple[np.ndarray, float]
@@ -281,7 +299,7 @@ class PacingMotion(_MotionPorts):
 
         Returns
         -------
-        (int, (kinds, omegas, anchors), ndarray)
+        (int, (kinds, values, anchors), ndarray)
             The chosen candidate's index, the candidates (see :meth:`candidates`) and their predicted mean r.
         """
         omega, gain = model
@@ -302,7 +320,10 @@ class PacingMotion(_MotionPorts):
             theta_next, lam_next, model, self.adjacency, self.assisted, b, cands, step=step, steps=steps
         )
         best = int(np.argmax(scores))
-        current = {NONE: 0, MEAN: 1}.get(self.mode, 2)  # pacing: the first pace candidate continues it
+        if self.mode == MEAN:
+            current = 1 + int(np.argmin(np.abs(self.gates - self.value)))
+        else:  # pacing: the first pace candidate continues it
+            current = 0 if self.mode == NONE else 1 + len(self.gates)
         if scores[best] < scores[current] + self.switch_margin:
             best = current
         if cands[0][best] != NONE and scores[best] < scores[0] + self.margin:
@@ -314,10 +335,9 @@ class PacingMotion(_MotionPorts):
     ) -> None:
         """Plan, and switch to the chosen candidate from the next tick on."""
         start = time.thread_time()
-        best, (kinds, omegas, anchors), _ = self.plan(theta, seen, lam, ref, model)
-        self.mode = int(kinds[best])
+        best, (kinds, values, anchors), _ = self.plan(theta, seen, lam, ref, model)
+        self.mode, self.value = int(kinds[best]), float(values[best])
         if self.mode == PACE:
-            self.pace_omega = float(omegas[best])
             self.theta_ref_now = wrap_angle(float(anchors[best]))
         self.choices.append(self.mode)
         self.decide_ms.append((time.thread_time() - start) * 1e3)

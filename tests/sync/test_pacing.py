@@ -18,14 +18,14 @@ from cogblocks.sync.pacing import MEAN, NONE, PACE, predicted_order
 BLENDER = BlenderParams()
 
 
-def brute_force(theta, lam, omega, gain, a, assisted, kind, freq, anchor, step, steps):
+def brute_force(theta, lam, omega, gain, a, assisted, kind, value, anchor, step, steps):
     """One candidate simulated with scalar loops (an independent transcription of the closed loop)."""
     n = len(theta)
     theta, total = [float(x) for x in theta], 0.0
     for s in range(steps):
         l0 = theta[assisted]
         if kind == PACE:
-            ref = anchor + freq * s * step
+            ref = anchor + value * s * step
         elif kind == MEAN:
             ref = math.atan2(
                 sum(math.sin(theta[j]) for j in range(n) if j != assisted),
@@ -34,6 +34,8 @@ def brute_force(theta, lam, omega, gain, a, assisted, kind, freq, anchor, step, 
         else:
             ref = l0
         d = (ref - l0 + math.pi) % (2 * math.pi) - math.pi
+        if kind == MEAN and abs(d) > value:  # gated: no alteration while the mean is farther than the gate
+            d = 0.0
         shift = min(max(d, -lam), lam)
         seen = list(theta)
         seen[assisted] = l0 + shift
@@ -54,9 +56,9 @@ def test_predicted_order_equals_a_scalar_simulation_of_each_candidate():
     a = rng.uniform(0.0, 1.5, (n, n)) * (rng.random((n, n)) < 0.7)  # weighted, directed
     np.fill_diagonal(a, 0.0)
     theta, omega, gain, lam = rng.uniform(0, 2 * np.pi, n), rng.uniform(1.0, 4.0, n), 0.8, 1.1
-    kinds = np.array([NONE, MEAN, PACE, PACE, PACE])
-    freqs = np.array([0.0, 0.0, 1.0, 2.5, 4.0])
-    anchors = np.array([0.0, 0.0, 0.3, 5.0, -2.0])
+    kinds = np.array([NONE, MEAN, MEAN, PACE, PACE, PACE])
+    freqs = np.array([0.0, math.pi, 1.5, 1.0, 2.5, 4.0])  # mean's gate, pace's frequency
+    anchors = np.array([0.0, 0.0, 0.0, 0.3, 5.0, -2.0])
     got = predicted_order(
         theta, lam, (omega, gain), a, assisted, BLENDER, (kinds, freqs, anchors), step=0.05, steps=120
     )
@@ -94,7 +96,7 @@ def test_the_choice_is_the_best_candidate_of_a_brute_force_simulation():
             for c in zip(kinds, freqs, anchors, strict=True)
         ]
         assert best == int(np.argmax(scores))
-        assert len(kinds) == 2 + 2 * 5 and kinds[0] == NONE and kinds[1] == MEAN
+        assert len(kinds) == 1 + 3 + 2 * 5 and kinds[0] == NONE and list(kinds[1:4]) == [MEAN] * 3
 
 
 def test_nothing_is_done_when_no_candidate_is_predicted_clearly_better():
@@ -178,7 +180,7 @@ def test_bad_data_policy():
     d.expose_input("lam", m.lam)
     sim = Simulator(d, probes={"ref": "m.theta_ref"})
     sim.run(n_steps=1, inputs={"theta": theta[:1], "lam": lam[:1]})
-    pacer.mode, pacer.pace_omega = PACE, 3.0  # as a decision would leave it
+    pacer.mode, pacer.value = PACE, 3.0  # as a decision would leave it
     ref = sim.run(n_steps=29, inputs={"theta": theta[1:30], "lam": lam[1:30]})["ref"]
     np.testing.assert_allclose(np.diff(np.unwrap(ref)), 0.03, atol=1e-12)
 
