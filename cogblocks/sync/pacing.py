@@ -175,7 +175,7 @@ class PacingMotion(_MotionPorts):
         adjacency: Any = "ring",
         blender: BlenderParams | None = None,
         decide_every: int = 100,
-        horizon: float = 20.0,
+        horizon: float = 10.0,
         step: float = 0.05,
         max_steps: int = 600,
         frequencies: int = 16,
