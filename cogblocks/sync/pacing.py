@@ -158,7 +158,8 @@ class PacingMotion(_MotionPorts):
     Notes
     -----
     :attr:`decide_ms` (CPU time of every decision) and :attr:`choices` (the kind chosen at every decision)
-    are records since the last reset, not block state.
+    are records since the last reset, not block state. The prediction and the identification use the dense
+    N × N graph: the block is meant for groups of up to tens of participants.
 
     Bad data policy: on a tick with a phase that is not finite and within one turn of [0, 2π), or a
     non-finite λ, nothing is identified or decided (a decision due then is taken at the next good tick), and
