@@ -36,6 +36,7 @@ MODULES = [
     "benchmarks.amplification",
     "benchmarks.optimal_blending",
     "benchmarks.mpc",
+    "benchmarks.pace",
     "benchmarks.soak",
     "benchmarks.sweep",
     "benchmarks.live",

@@ -56,17 +56,26 @@ def _mpc_motion(group: SyncGroup) -> Block:
     return MPCMotion(group.n, group.assisted)
 
 
+def _pace_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import PacingMotion
+
+    return PacingMotion(group.n, group.assisted, adjacency=group.graph)
+
+
 #: Motion computers available by name: each builds a fresh block for a group.
 #: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --randomised --seed 0``),
 #: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
 #: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 3 s
-#: every 0.5 s with casadi on a model it identifies online. Add an entry to make a policy available to
+#: every 0.5 s with casadi on a model it identifies online, ``pace`` chooses every period between doing
+#: nothing, the circular mean and constant pacing frequencies by simulating that identified model seconds
+#: ahead (no oracle, no training). Add an entry to make a policy available to
 #: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
     "lookahead": _lookahead_motion,
     "mean": _mean_motion,
     "mpc": _mpc_motion,
+    "pace": _pace_motion,
 }
 
 #: What ``run_sync`` and ``cogblocks run sync --group N`` run without a policy list: the Table 3

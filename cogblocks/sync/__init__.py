@@ -23,6 +23,7 @@ _LAZY = {
     "DQNPolicy": "cogblocks.sync.dqn_policy",
     "GroupIdentifier": "cogblocks.sync.identification",
     "MPCMotion": "cogblocks.sync.mpc",
+    "PacingMotion": "cogblocks.sync.pacing",
 }
 
 __all__ = [
@@ -43,6 +44,7 @@ __all__ = [
     "MeanPhaseMotion",
     "MotionComputer",
     "OrderParameter",
+    "PacingMotion",
     "SyncModel",
     "check_blender",
     "lambda_report",
