@@ -53,7 +53,7 @@ def _lookahead_motion(group: SyncGroup) -> Block:
 def _mpc_motion(group: SyncGroup) -> Block:
     from cogblocks.sync import MPCMotion
 
-    return MPCMotion(group.n, group.assisted)
+    return MPCMotion(group.n, group.assisted, adjacency=group.adjacency())
 
 
 def _pace_motion(group: SyncGroup) -> Block:

@@ -108,3 +108,11 @@ def test_mpc_refuses_a_step_that_does_not_divide_the_period():
         Simulator(pop_sync(group, motion=MPCMotion(group.n, group.assisted, step=0.3)))
     with pytest.raises(ValueError, match="together"):
         MPCMotion(3, 0, omega=[1.0, 2.0, 3.0])
+
+
+def test_the_runners_mpc_plans_on_the_groups_own_graph():
+    """``MOTIONS["mpc"]`` (held-out runner, ``pop_sync``) gets the group's adjacency, not a ring."""
+    weights = np.array([[0.0, 1.0, 0.5, 0.0], [1.0, 0.0, 0.0, 2.0], [0.5, 0.0, 0.0, 1.0], [0.0, 2.0, 1.0, 0.0]])
+    for graph in ("all", weights):
+        group = SyncGroup("g", 4, 0.5, (2.0, 2.5, 3.0, 3.5), 1, 2.0, graph=graph)
+        np.testing.assert_array_equal(MOTIONS["mpc"](group).adjacency, group.adjacency())
