@@ -189,8 +189,6 @@ class LowPass(Block):
         self.add_output("y", like="u")
         self.add_state("z", np.zeros(()))
         self.add_state("primed", False)
-        self.add_state("last", np.zeros(()))
-        self.add_state("seen", False)  # a finite sample has arrived
 
     def setup(self) -> None:
         nyquist = 0.5 / self.dt
@@ -203,22 +201,27 @@ class LowPass(Block):
         shape = self.u.spec.shape
         self.add_state("z", np.zeros((len(self.sos), 2) + shape))
         self.add_state("primed", self.init == "zero")
-        self.add_state("last", np.zeros(shape))  # the last finite value of each element, for gaps="repeat"
+        if self.gaps == "repeat":  # only then: "hold" keeps a state a linearisation can perturb freely
+            self.add_state("last", np.zeros(shape))  # the last finite value of each element
+            self.add_state("seen", False)  # a wholly finite sample has arrived
+            self._last_next = np.zeros(shape)
         self._z_next = np.zeros_like(self.z)
-        self._last_next = np.zeros(shape)
         extra = (slice(None), slice(None)) + (None,) * len(shape)
         self._zi_unit = self._zi_unit[extra]
 
     def output(self, k: int) -> None:
         x = self.u.value
         finite = np.isfinite(x)
+        repeat = self.gaps == "repeat"
         if not np.all(finite):
-            if self.gaps == "hold" or not self.seen:
+            if not repeat or not self.seen:
                 self._z_next[...] = self.z
-                self._last_next[...] = self.last
+                if repeat:
+                    self._last_next[...] = self.last
                 return
             x = np.where(finite, x, self.last)
-        self._last_next[...] = x
+        if repeat:
+            self._last_next[...] = x
         if not self.primed:
             self.z = self._zi_unit * x
             self.primed = True
@@ -232,8 +235,9 @@ class LowPass(Block):
 
     def update(self, k: int) -> None:
         self.z[...] = self._z_next
-        self.last[...] = self._last_next
-        self.seen = self.seen or bool(np.all(np.isfinite(self.u.value)))
+        if self.gaps == "repeat":
+            self.last[...] = self._last_next
+            self.seen = self.seen or bool(np.all(np.isfinite(self.u.value)))
 
 
 class DiscreteLTI(Block):
