@@ -19,7 +19,34 @@ from cogblocks.sim.params import (
     wrapped_arg,
 )
 
-__all__ = ["BackwardDifference", "DiscreteLTI", "Integrator", "LowPass", "UnitDelay"]
+__all__ = ["BackwardDifference", "DiscreteLTI", "Integrator", "LowPass", "UnitDelay", "sos_step"]
+
+
+def sos_step(sos: Any, z: np.ndarray, x: Any, z_next: np.ndarray) -> Any:
+    """One sample through second-order sections in transposed direct form II, as ``scipy.signal.sosfilt`` runs them.
+
+    Parameters
+    ----------
+    sos : sequence of (b0, b1, b2, a0, a1, a2)
+        The sections, ``a0 = 1``.
+    z : ndarray, shape (n_sections, 2, ...)
+        The state before the sample; not changed.
+    x : float or ndarray
+        The input sample (the trailing shape of ``z``).
+    z_next : ndarray, like ``z``
+        Receives the state after the sample.
+
+    Returns
+    -------
+    float or ndarray
+        The output sample.
+    """
+    for s, (b0, b1, b2, _, a1, a2) in enumerate(sos):
+        y = b0 * x + z[s, 0]
+        z_next[s, 0] = b1 * x - a1 * y + z[s, 1]
+        z_next[s, 1] = b2 * x - a2 * y
+        x = y
+    return x
 
 
 class _Memory(Block):
@@ -225,13 +252,7 @@ class LowPass(Block):
         if not self.primed:
             self.z = self._zi_unit * x
             self.primed = True
-        z, z_next = self.z, self._z_next
-        for s, (b0, b1, b2, _, a1, a2) in enumerate(self.sos):
-            y = b0 * x + z[s, 0]
-            z_next[s, 0] = b1 * x - a1 * y + z[s, 1]
-            z_next[s, 1] = b2 * x - a2 * y
-            x = y
-        self.y.value[...] = x
+        self.y.value[...] = sos_step(self.sos, self.z, x, self._z_next)
 
     def update(self, k: int) -> None:
         self.z[...] = self._z_next

@@ -312,10 +312,7 @@ class Algorithm1Phase(Block):
             x = self._movement(phase - self.lead)
         n_pushed = self.n_pushed + 1
         total = self.total + x
-        n = self._window(n_pushed)
-        start = n_pushed - n
-        # the slot of ``start`` is overwritten only in update(), after this read
-        pc = pf - (total - (self.csum[start % self._size] if start else 0.0)) / n
+        pc = self._centred(pf, n_pushed, total)
         if self.derivative_inputs:
             v, a = v_in, a_in
         else:
@@ -387,10 +384,14 @@ class Algorithm1Phase(Block):
         response, gap_z = self._transient.step(self.gap_z, self._movement(phase) - self.raw_prev)
         pf += response
         n_pushed, total = self.n_pushed + 1, self.total + self._movement(phase - self.lead)
+        return gap_z, pf, self._centred(pf, n_pushed, total), (pf - self.p_prev) / self.dt, n_pushed, total
+
+    def _centred(self, pf: float, n_pushed: int, total: float) -> float:
+        """``pf`` minus the mean of the centring window ending at sample ``n_pushed`` (running sum ``total``)."""
         n = self._window(n_pushed)
         start = n_pushed - n
-        pc = pf - (total - (self.csum[start % self._size] if start else 0.0)) / n
-        return gap_z, pf, pc, (pf - self.p_prev) / self.dt, n_pushed, total
+        # the slot of ``start`` is overwritten only in update(), after this read
+        return pf - (total - (self.csum[start % self._size] if start else 0.0)) / n
 
     def _movement(self, phase: float) -> float:
         """The position the oscillation of the last measured centre and amplitudes has at ``phase``."""

@@ -6,6 +6,8 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
+from cogblocks.blocks.discrete import sos_step
+
 __all__ = ["GapTransient"]
 
 
@@ -35,13 +37,7 @@ class GapTransient:
     def step(self, state: np.ndarray, e: float) -> tuple[float, np.ndarray]:
         """One sample of the response (transposed direct form II): ``(output, next state)``; ``state`` is kept."""
         nxt = np.empty_like(state)
-        x = e
-        for s, (b0, b1, b2, _, a1, a2) in enumerate(self.sos):
-            y = b0 * x + state[s, 0]
-            nxt[s, 0] = b1 * x - a1 * y + state[s, 1]
-            nxt[s, 1] = b2 * x - a2 * y
-            x = y
-        return x, nxt
+        return sos_step(self.sos, state, e, nxt), nxt
 
     def run(self, state: np.ndarray, es: Iterable[float]) -> tuple[float, np.ndarray]:
         """Several samples from ``state``: the output of the last one and the state after it."""
