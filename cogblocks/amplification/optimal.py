@@ -83,7 +83,8 @@ class OptimalBlender(Block):
     otherwise the previous plan is kept (it is defined on absolute time, so keeping it is shifting
     it), or at the first decision the table-lookup blend ``c = w̃(η_i, v_r)`` is used until a solve
     succeeds (pass-through without a table). ``fallbacks`` counts them; :attr:`results` has every
-    decision and :attr:`solve_ms` the times of those that ran the solver.
+    decision, :attr:`solve_ms` the times of those that ran the solver and :attr:`tick_ms` the CPU time
+    of every tick that worked on one (building, iterating, checking; not the ticks that only wait).
 
     Ports
     -----
@@ -334,13 +335,16 @@ class OptimalBlender(Block):
             return new
         job["ticks"] += 1
         commit = t >= job["t0"] or job["problem"] is None
-        if job["problem"] is not None:
-            new["solving"] = True
+        if job["problem"] is not None and (commit or job["ticks"] == 1):
+            new["solving"] = True  # building, checking: ticks that only wait for the plan's tick are not counted
         if job["run"] is not None and not job["run"].finished:
             # on the committing tick the last check's time stays in reserve; a decision never left without
             # any iteration (as the single-tick solve, which always runs one)
             deadline = started + self.time_limit_ms / 1e3 - (self._check_s if commit else 0.0)
-            job["run"].run(deadline, at_least_one=commit and job["run"].done == 0)
+            done = job["run"].done
+            job["run"].run(deadline, at_least_one=commit and done == 0)
+            if job["run"].done > done:
+                new["solving"] = True
         job["cpu"] += time.thread_time() - started
         if commit:
             new.update(self._finish(t, new))

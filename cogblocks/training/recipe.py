@@ -3,6 +3,7 @@
 Usage::
 
     python -m cogblocks.training.recipe --seed 0   # cross-validates RECIPES on the training part
+    python -m cogblocks.training.recipe --kinematic   # the kinematic judge's candidates, the same way
 
 An ensemble (:func:`train_fold_ensemble`) holds ``members`` :class:`EncoderNet`: member ``i`` is
 trained on the given movements without the ``i``-th of ``members`` seeded, stratified folds and
@@ -36,6 +37,7 @@ __all__ = [
     "RECIPES",
     "TrainingRecipe",
     "clipped_shares",
+    "cross_validate_kinematic",
     "cross_validate_recipe",
     "main",
     "stratified_folds",
@@ -246,18 +248,55 @@ def cross_validate_recipe(
     }
 
 
+def cross_validate_kinematic(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> dict[str, dict[str, float]]:
+    """5-fold stratified cross-validation of kinematic classifiers (scikit-learn) decided at probability 0.5.
+
+    The candidates: the :class:`~cogblocks.amplification.judges.KinematicJudge`'s logistic regression
+    (C = 1 and 0.1, standardised features) and gradient boosting of depth 1–3. Per model: the share of
+    each class decided correctly and their mean (``balanced``).
+    """
+    from sklearn.ensemble import GradientBoostingClassifier
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.model_selection import StratifiedKFold, cross_val_predict
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    models = {
+        "logistic C=1": make_pipeline(StandardScaler(), LogisticRegression(C=1.0, max_iter=1000)),
+        "logistic C=0.1": make_pipeline(StandardScaler(), LogisticRegression(C=0.1, max_iter=1000)),
+        "boosting depth 1, 300 trees": GradientBoostingClassifier(max_depth=1, n_estimators=300, random_state=seed),
+        "boosting depth 2, 100 trees": GradientBoostingClassifier(max_depth=2, random_state=seed),
+        "boosting depth 3, 100 trees": GradientBoostingClassifier(max_depth=3, random_state=seed),
+    }
+    labels = np.asarray(labels, dtype=bool)
+    folds = StratifiedKFold(5, shuffle=True, random_state=seed)
+    rows = {}
+    for name, model in models.items():
+        fear = cross_val_predict(model, features, labels, cv=folds, method="predict_proba")[:, 1] > 0.5
+        shares = {"fear": float(np.mean(fear[labels])), "no_fear": float(np.mean(~fear[~labels]))}
+        rows[name] = {**shares, "balanced": (shares["fear"] + shares["no_fear"]) / 2}
+    return rows
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Command-line entry point: cross-validate every recipe of :data:`RECIPES` on the shipped training part."""
+    from cogblocks.amplification.judges import kinematic_features
     from cogblocks.data.features import classifier_inputs
     from cogblocks.diagrams.amplification_setup import amplification_setup
 
     parser = argparse.ArgumentParser(prog="python -m cogblocks.training.recipe", description=__doc__)
     parser.add_argument("--seed", type=int, default=0, help="seed of the outer and inner folds (default 0)")
     parser.add_argument("--only", nargs="*", choices=sorted(RECIPES), help="recipes to compare (default all)")
+    parser.add_argument("--kinematic", action="store_true", help="compare the kinematic classifiers instead")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     setup = amplification_setup(None, 1)
     inputs, labels = classifier_inputs(setup.library), setup.library.fear
+    if args.kinematic:
+        features = kinematic_features(setup.library.velocity[setup.train], setup.library.dt)
+        for name, row in cross_validate_kinematic(features, labels[setup.train], args.seed).items():
+            print(f"{name}: " + " ".join(f"{k} {v:.3f}" for k, v in row.items()))
+        return
     for name in args.only or RECIPES:
         started = time.perf_counter()
         row = cross_validate_recipe(inputs, labels, setup.train, RECIPES[name], args.seed)

@@ -219,7 +219,8 @@ def test_solve_ticks_plans_from_the_last_tick(setup, networks, ticks):
     # before the first plan takes effect (tick first + ticks − 1) the human velocity passes through
     np.testing.assert_array_equal(trace["v_a"][: first + ticks - 1], trace["v_h"][: first + ticks - 1])
     assert not np.allclose(trace["v_a"][first + ticks - 1], trace["v_h"][first + ticks - 1])
-    assert len(blender.tick_ms) == sum(r.ticks for r in solved)
+    # ticks that worked: at least the first and the committing one of each decision, never more than it spanned
+    assert sum(min(r.ticks, 2) for r in solved) <= len(blender.tick_ms) <= sum(r.ticks for r in solved)
     np.testing.assert_allclose(blender.solve_ms, [r.solve_ms for r in solved])
     with pytest.raises(ValueError, match="solve_ticks > 1 needs solver='linearised'"):
         OptimalBlender(setup.movements, networks, setup.table, solve_ticks=2)

@@ -17,6 +17,7 @@ from cogblocks.training.recipe import (
     RECIPES,
     TrainingRecipe,
     clipped_shares,
+    cross_validate_kinematic,
     cross_validate_recipe,
     stratified_folds,
     train_member,
@@ -58,7 +59,8 @@ def test_member_is_seeded_and_early_stopping_keeps_the_best_epoch(small):
     # and no epoch has a lower loss on the stopping fold
     loss = nn.BCELoss()
     x, y = torch.as_tensor(inputs[stop], dtype=torch.float32), torch.as_tensor(library.fear[stop], dtype=torch.float32)
-    best = float(loss(a(x), y))
+    with torch.no_grad():
+        best = float(loss(a(x), y))
     for n in range(1, 13):
         other, _ = train_member(inputs[train], library.fear[train], replace(recipe, epochs=n, patience=0), 3)
         with torch.no_grad():
@@ -114,3 +116,14 @@ def test_the_chosen_recipe_is_one_of_the_compared():
     shipped = load_ensemble("judges.pt")
     assert shipped[0].checkpoint["recipe"] == CHOSEN and len(shipped) == 5
     assert load_ensemble("encoder_ensemble.pt")[0].checkpoint["recipe"] == CHOSEN
+
+
+def test_kinematic_candidates_cross_validated():
+    rng = np.random.default_rng(0)
+    labels = np.arange(40) % 2 == 0
+    separable = np.c_[labels + 0.05 * rng.normal(size=40), rng.normal(size=40)]
+    rows = cross_validate_kinematic(separable, labels)
+    assert len(rows) == 5 and all(row == {"fear": 1.0, "no_fear": 1.0, "balanced": 1.0} for row in rows.values())
+    noise = cross_validate_kinematic(rng.normal(size=(40, 2)), labels)
+    for row in noise.values():
+        assert row["balanced"] == pytest.approx((row["fear"] + row["no_fear"]) / 2) and row["balanced"] < 0.9
