@@ -158,7 +158,8 @@ class OptimalBlender(Block):
     -----
     The solve runs in the output phase of the decision's tick (it needs the projector's new
     decision) and is committed in the update phase. :attr:`results` is a record of the decisions
-    since the last reset, not block state: restoring a snapshot does not rewind it.
+    since the last reset, not block state: restoring a snapshot does not rewind it, nor a solve in
+    flight (``solve_ticks`` > 1), which :meth:`reset` drops.
 
     Bad data policy: a non-finite ``v_h`` or ``v_u`` gives a non-finite ``v_a`` on that tick, as in
     :class:`VelocityBlender` (``v_r`` only counts while the table's ``c`` < 1 is in force); for later
@@ -329,7 +330,7 @@ class OptimalBlender(Block):
                     new["solving"] = True
                 new.update(self._finish(t, {}))
             new["handled"] = int(self.decisions.value)
-            self._job = self._begin(t)
+            self._job = self._begin(t, {"plan": self.plan, "end": self.end, "table_c": self.table_c, **new})
         job = self._job
         if job is None:
             return new
@@ -350,7 +351,7 @@ class OptimalBlender(Block):
             new.update(self._finish(t, new))
         return new
 
-    def _begin(self, t: int) -> dict[str, Any]:
+    def _begin(self, t: int, state: dict[str, Any]) -> dict[str, Any]:
         """Start the decision at tick ``t``: its problem, planned from ``t + solve_ticks − 1`` on, and its solve."""
         nearest, reference = int(self.nearest.value), int(self.reference.value)
         lib, n = self.library, len(self.human)
@@ -358,8 +359,8 @@ class OptimalBlender(Block):
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
         # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
         # is enough: the altered movement may end before the human's, having covered the same distance sooner
-        length = max(self.end, int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
-        if not at_rest and (self.e_des or self.end == 0):
+        length = max(state["end"], int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
+        if not at_rest and (self.e_des or state["end"] == 0):
             length = max(length, t0 + self.knot_spacing)
         length = min(length, n)
         predicted = np.zeros_like(self.human)
@@ -370,7 +371,6 @@ class OptimalBlender(Block):
         if length <= t0:  # the planned movement is over: nothing left to decide
             return job
         if t0 > t:  # the ticks before t0 emit what the state in force emits, on the prediction
-            state = {"plan": self.plan, "end": self.end, "table_c": self.table_c}
             altered = self._emission(t, predicted, state)
             human = np.concatenate([self.human[:t], predicted[t:]])
         else:
