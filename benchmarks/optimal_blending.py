@@ -5,13 +5,14 @@
 Held-out no-fear movements of the shipped encoder's split are replayed through the architecture
 in the same run: with the table-lookup :class:`~cogblocks.amplification.VelocityBlender` (the
 reference), with :class:`~cogblocks.amplification.OptimalBlender` as ``cogblocks run amplification``
-runs it ("realistic": the blender ensemble, the realism subspace and the linearised solver, 3.5 ms
-limit), with one network and casadi (8 ms limit; sqpmethod, and IPOPT in the full run) and with the
+runs it ("realistic": the blender ensemble, the realism subspace and the linearised solver, configured as
+``OPTIMISED``), with one network and casadi (8 ms limit; sqpmethod, and IPOPT in the full run) and with the
 table lookup plus the
 :class:`~cogblocks.amplification.RLCorrector`. A blender's decision is its output on a tick where the
 projector's decision count changes: for the table, looking ``c`` up and blending; for the
-optimiser, building the problem, solving it and checking the result (decisions after the planned
-movement has ended, with nothing to solve, are left out). The corrector's decision is its update on
+optimiser, every tick on which it works on a decision: building the problem, solving it (one solve
+may span ``solve_ticks`` ticks) and checking the result (decisions after the planned movement has
+ended, with nothing to solve, are left out). The corrector's decision is its update on
 the ticks where it chooses α (one DQN forward pass). Each decision is timed with the wall clock and
 with ``time.thread_time_ns``, the calling thread's CPU time (what the solver's time limit and the
 block's own ``solve_ms`` use): on a shared machine the wall clock also counts the slices the
@@ -31,22 +32,32 @@ import numpy as np
 import torch
 
 from cogblocks.amplification import OptimalBlender, RLCorrector, load_corrector
-from cogblocks.amplification.judges import BLENDER_ENSEMBLE, load_ensemble
 from cogblocks.diagrams.amplification import _optimal_blender, amplification_setup, pop_amplification
+from cogblocks.diagrams.amplification_setup import blender_networks
 from cogblocks.sim import Block, Simulator
 
 
-def _time_calls(block: Block, method: str, decides: Callable[[int], bool], log: list[tuple[float, float]]) -> None:
-    """Make ``block.<method>`` append (wall ms, CPU ms) to ``log`` on the ticks where ``decides(k)``."""
+def _time_calls(
+    block: Block,
+    method: str,
+    decides: Callable[[int], bool],
+    log: list[tuple[float, float]],
+    worked: Callable[[], int] | None = None,
+) -> None:
+    """Make ``block.<method>`` append (wall ms, CPU ms) to ``log`` on the ticks where ``decides(k)``
+    (and, with ``worked``, where that count grew during the call)."""
     call = getattr(block, method)
 
     def timed(k: int) -> None:
         if not decides(k):
             call(k)
             return
+        before = worked() if worked is not None else 0
         wall, cpu = time.perf_counter_ns(), time.thread_time_ns()
         call(k)
-        log.append(((time.perf_counter_ns() - wall) / 1e6, (time.thread_time_ns() - cpu) / 1e6))
+        elapsed = ((time.perf_counter_ns() - wall) / 1e6, (time.thread_time_ns() - cpu) / 1e6)
+        if worked is None or worked() > before:
+            log.append(elapsed)
 
     setattr(block, method, timed)  # before compiling: the plan binds the methods then
 
@@ -60,7 +71,7 @@ def _replay(setup, humans: np.ndarray, variant: str) -> tuple[np.ndarray, int]:
     network = load_corrector()
     for human in humans:
         if variant == "realistic":  # what `cogblocks run amplification` runs: the blender ensemble, OPTIMISED
-            blender = _optimal_blender(setup, [setup.encoder, *load_ensemble(BLENDER_ENSEMBLE)])
+            blender = _optimal_blender(setup, blender_networks(setup.encoder))
         elif variant not in ("table", "rl"):
             blender = OptimalBlender(setup.movements, setup.encoder, setup.table, solver=variant)
         else:
@@ -77,7 +88,7 @@ def _replay(setup, humans: np.ndarray, variant: str) -> tuple[np.ndarray, int]:
         if variant == "rl":
             corrector = d["l2.corrector"]
             _time_calls(corrector, "update", lambda k, c=corrector: (k + 1) % c.interval == 0, log)
-        else:
+        elif blender is None:
             block, seen = d["l2.blender"], [0]
 
             def new_decision(k: int, block: Block = block, seen: list[int] = seen) -> bool:
@@ -86,9 +97,10 @@ def _replay(setup, humans: np.ndarray, variant: str) -> tuple[np.ndarray, int]:
                 return changed
 
             _time_calls(block, "output", new_decision, log)
+        else:  # every tick; kept: those where the block worked on a decision (it records them in tick_ms)
+            _time_calls(d["l2.blender"], "output", lambda k: True, log, worked=lambda b=blender: len(b.tick_ms))
         Simulator(d).run(n_steps=setup.library.max_len)
         if blender is not None:
-            log = [entry for entry, r in zip(log, blender.results, strict=True) if r.status != "ended"]
             fallbacks += blender.fallbacks
         times += log
     return np.array(times), fallbacks

@@ -195,8 +195,9 @@ def _run_amplification(args: argparse.Namespace) -> int:
             if paper is None:  # no published figure: the optimised variant
                 lines.append(
                     f"  {name:>9}: encoded {percent(row['encoded'])}, terminal ok {percent(row['terminal_ok'])}, "
-                    f"final distance {row['final_distance_mm']:.1f} mm, n {row['n']}; time per decision "
-                    f"p50 {row['solve_ms_p50']:.1f} ms, p99 {row['solve_ms_p99']:.1f} ms, fallbacks {row['fallbacks']}"
+                    f"final distance {row['final_distance_mm']:.1f} mm, n {row['n']}; CPU time per tick "
+                    f"p50 {row['solve_ms_p50']:.1f} ms, p99 {row['solve_ms_p99']:.1f} ms (per decision p99 "
+                    f"{row['decision_ms_p99']:.1f} ms), fallbacks {row['fallbacks']} of {row['decisions']}"
                     + judged(row)
                 )
                 continue

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
-__all__ = ["LinearisedSolver", "box_qp"]
+__all__ = ["LinearisedRun", "LinearisedSolver", "box_qp"]
 
 _PENALTY = 1e3  # as the SQP's: weight of the encoding slack per logit unit
 
@@ -111,6 +111,7 @@ class LinearisedSolver:
         for k, w in enumerate(w2):
             self.w2[k, k * len(w) : (k + 1) * len(w)] = w
         self.b2 = np.asarray(b2, dtype=np.float64)
+        self.iteration = 0.0  # CPU seconds of the last iteration: the prediction of the next one's
 
     def logits(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every member's logit at input ``x`` and its gradient (members, inputs)."""
@@ -171,58 +172,121 @@ class LinearisedSolver:
         time_limit: float,
         max_iter: int = 10,
     ) -> tuple[np.ndarray | None, str, int]:
-        """Plan variables (None: none acceptable), status and iterations of one decision.
+        """Plan variables (None: none acceptable), status and iterations of one decision, in one go.
 
-        ``p`` holds ``A, x0, H, q, C, g0, d`` and ``rhs`` as the SQP's parameters (classifier input
-        ``x0 + A w``, cost ``wᵀHw + 2qᵀw``, gap ``g0 + C w``, last speed ``dᵀw ≥ rhs[2]``). Each
-        iteration solves ``min wᵀHw + 2qᵀw + μ‖w − w_k‖² + ρ Σ s_j`` subject to the members'
-        linearised encoding constraints ``sign·z_j ≥ z_target`` (slack ``s_j`` each) and the speed
-        constraint, through its dual (:func:`box_qp`), adding up to two tangent planes of the ball
-        ``‖gap‖ ≤ delta`` while the step lies outside it; then a backtracking line search on the
-        exact ℓ1 merit. An iterate is acceptable when every exact network is beyond ``z_clip`` and
-        the gap within ``delta_pos``; the cheapest acceptable iterate is returned, ``"converged"``
-        once a step is small (or no cheaper) and meets ``z_target``, otherwise ``"accepted"``; a
-        fixed point short of ``z_clip`` within ``delta_pos`` is returned as ``"converged"`` too (as
-        close as the plan can get, like the SQP's exact penalty). ``time_limit`` (s of CPU time)
-        stops it before an iteration predicted to end past it, after at least one iteration.
+        :meth:`start` followed by one :meth:`LinearisedRun.run` with ``time_limit`` seconds of CPU time
+        from now, at least one iteration (see :class:`LinearisedRun` for the iterations and statuses).
         """
-        start = previous = time.thread_time()
-        a, c, g0 = p["A"], p["C"], p["g0"]
-        w = np.asarray(w0, dtype=np.float64)
-        m, members = len(w), len(self.b2)
-        mu = self.proximal * max(np.trace(p["H"]) / m, 1e-12)
-        factor = cho_factor(p["H"] + mu * np.eye(m))
-        upper0 = np.r_[np.full(members, _PENALTY), np.inf]
-        best, best_cost, status, done = None, np.inf, "fallback", 0
-        merit, (z, g) = self._merit(p, w, z_target, delta)
-        while done < max_iter:
-            done += 1
+        deadline = time.thread_time() + time_limit
+        run = self.start(p, w0, z_target, z_clip, delta, delta_pos, max_iter)
+        run.run(deadline, at_least_one=True)
+        return run.result()
+
+    def start(
+        self,
+        p: dict[str, Any],
+        w0: np.ndarray,
+        z_target: float,
+        z_clip: float,
+        delta: float,
+        delta_pos: float,
+        max_iter: int = 10,
+    ) -> LinearisedRun:
+        """A resumable solve of one decision from ``w0`` (:class:`LinearisedRun`); nothing is iterated yet."""
+        return LinearisedRun(self, p, w0, z_target, z_clip, delta, delta_pos, max_iter)
+
+
+class LinearisedRun:
+    """One decision's solve by :class:`LinearisedSolver`, resumable over several calls of :meth:`run`.
+
+    ``p`` holds ``A, x0, H, q, C, g0, d`` and ``rhs`` as the SQP's parameters (classifier input
+    ``x0 + A w``, cost ``wᵀHw + 2qᵀw``, gap ``g0 + C w``, last speed ``dᵀw ≥ rhs[2]``). Each
+    iteration solves ``min wᵀHw + 2qᵀw + μ‖w − w_k‖² + ρ Σ s_j`` subject to the members'
+    linearised encoding constraints ``sign·z_j ≥ z_target`` (slack ``s_j`` each) and the speed
+    constraint, through its dual (:func:`box_qp`), adding up to two tangent planes of the ball
+    ``‖gap‖ ≤ delta`` while the step lies outside it; then a backtracking line search on the
+    exact ℓ1 merit. An iterate is acceptable when every exact network is beyond ``z_clip`` and
+    the gap within ``delta_pos``; the cheapest acceptable iterate is kept, ``"converged"`` once a
+    step is small (or no cheaper) and meets ``z_target``, otherwise ``"accepted"``; a fixed point
+    short of ``z_clip`` within ``delta_pos`` is kept as ``"converged"`` too (as close as the plan can
+    get, like the SQP's exact penalty). Without an acceptable iterate the status is ``"fallback"``.
+    """
+
+    def __init__(self, solver: LinearisedSolver, p: dict[str, Any], w0: np.ndarray, z_target: float,
+                 z_clip: float, delta: float, delta_pos: float, max_iter: int) -> None:  # fmt: skip
+        self.solver, self.p = solver, p
+        self.z_target, self.z_clip, self.delta, self.delta_pos, self.max_iter = (
+            z_target, z_clip, delta, delta_pos, max_iter
+        )  # fmt: skip
+        self.w = np.asarray(w0, dtype=np.float64)
+        self.members = len(solver.b2)
+        self.best, self.best_cost, self.status, self.done = None, np.inf, "fallback", 0
+        self._factor = None
+
+    @property
+    def finished(self) -> bool:
+        """Converged or out of iterations: further :meth:`run` calls do nothing."""
+        return self.status == "converged" or self.done >= self.max_iter
+
+    def result(self) -> tuple[np.ndarray | None, str, int]:
+        """The kept plan variables (None: none acceptable), the status and the iterations run so far."""
+        return self.best, self.status, self.done
+
+    def _prepare(self) -> None:
+        p, m = self.p, len(self.w)
+        self.mu = self.solver.proximal * max(np.trace(p["H"]) / m, 1e-12)
+        self._factor = cho_factor(p["H"] + self.mu * np.eye(m))
+        self._upper0 = np.r_[np.full(self.members, _PENALTY), np.inf]
+        self.merit, self._linear = self.solver._merit(p, self.w, self.z_target, self.delta)
+
+    def run(self, deadline: float, *, at_least_one: bool = False, clock: Any = time.thread_time) -> bool:
+        """Iterate until finished or until the next iteration is predicted to end past ``deadline``.
+
+        ``deadline`` is a value of ``clock`` (the thread's CPU time in seconds by default); an
+        iteration is predicted to take as long as the solver's last one (:attr:`LinearisedSolver.iteration`),
+        so none starts that would end past it, unless ``at_least_one`` and none has run in this call.
+        Returns :attr:`finished`.
+        """
+        solver, p, members = self.solver, self.p, self.members
+        a, c, g0, delta = p["A"], p["C"], p["g0"], self.delta
+        ran = 0
+        while not self.finished:
+            now = clock()
+            if now + solver.iteration > deadline and not (at_least_one and ran == 0):
+                break
+            if self._factor is None:
+                self._prepare()
+            z, g = self._linear
+            w = self.w
             # rows G w ≥ h: encoding (linearised at w), speed; then tangents of the terminal ball as needed
-            rows = np.vstack([self.sign * (g @ a), p["d"]])
-            h = np.r_[z_target - self.sign * z + rows[:members] @ w, p["rhs"][2]]
-            upper, hq, hg = upper0, cho_solve(factor, p["q"] - mu * w), cho_solve(factor, rows.T)
-            step = self._qp_step(rows, h, hq, hg, upper, members)
+            rows = np.vstack([solver.sign * (g @ a), p["d"]])
+            h = np.r_[self.z_target - solver.sign * z + rows[:members] @ w, p["rhs"][2]]
+            upper, hq = self._upper0, cho_solve(self._factor, p["q"] - self.mu * w)
+            hg = cho_solve(self._factor, rows.T)
+            step = solver._qp_step(rows, h, hq, hg, upper, members)
             for _ in range(2):  # cutting planes: a tangent of the ball at the new gap while it lies outside
                 outside = g0 + c @ step
                 if np.linalg.norm(outside) <= delta * 1.001:
                     break
                 normal = outside / np.linalg.norm(outside)
                 rows, h = np.vstack([rows, -normal @ c]), np.r_[h, normal @ g0 - delta]
-                hg, upper = np.c_[hg, cho_solve(factor, -c.T @ normal)], np.r_[upper, np.inf]
-                step = self._qp_step(rows, h, hq, hg, upper, members)
-            w, (z, g), moved, merit = self._line_search(p, w, step, merit, z_target, delta)
-            reached = float((self.sign * z).min())
+                hg, upper = np.c_[hg, cho_solve(self._factor, -c.T @ normal)], np.r_[upper, np.inf]
+                step = solver._qp_step(rows, h, hq, hg, upper, members)
+            w, self._linear, moved, self.merit = solver._line_search(p, w, step, self.merit, self.z_target, delta)
+            self.w = w
+            self.done += 1
+            ran += 1
+            z, _ = self._linear
+            reached = float((solver.sign * z).min())
             cost = float(w @ p["H"] @ w + 2.0 * p["q"] @ w)
-            within = np.linalg.norm(g0 + c @ w) <= delta_pos
-            if reached > z_clip and within and cost < best_cost:
-                improved = cost < best_cost - 1e-3 * abs(best_cost)
-                best, best_cost = w.copy(), cost
+            within = np.linalg.norm(g0 + c @ w) <= self.delta_pos
+            if reached > self.z_clip and within and cost < self.best_cost:
+                improved = cost < self.best_cost - 1e-3 * abs(self.best_cost)
+                self.best, self.best_cost = w.copy(), cost
                 # a small step, or no better plan any more, meeting the planned target: stop here
-                status = "converged" if reached >= z_target - 1e-6 and (moved < 1e-2 or not improved) else "accepted"
-            if best is None and within and moved < 1e-2:
-                best, status = w.copy(), "converged"  # a fixed point short of the threshold: as close as it gets
-            now = time.thread_time()
-            last, previous = now - previous, now  # the next iteration is predicted to take as long as this one
-            if status == "converged" or now - start + last > time_limit:
-                break
-        return best, status, done
+                converged = reached >= self.z_target - 1e-6 and (moved < 1e-2 or not improved)
+                self.status = "converged" if converged else "accepted"
+            if self.best is None and within and moved < 1e-2:
+                self.best, self.status = w.copy(), "converged"  # a fixed point short of the threshold
+            solver.iteration = clock() - now  # the next iteration is predicted to take as long as this one
+        return self.finished

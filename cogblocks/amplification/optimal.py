@@ -13,19 +13,14 @@ with ``v_a = v_h + u`` and ``u`` piecewise linear on knots every ΔT samples, ov
 the human's future is predicted by η_i (the projector's nearest library movement, expanded to its
 full length) and only the samples up to the next decision are applied. Cubic-spline resampling is
 linear in the samples for a fixed length (:func:`input_map`), so the classifier input is affine in
-the knots and the only nonlinearity is the network itself (:func:`encoder_to_casadi`).
-
-Why these decision variables: a correction added to the *measured* human velocity keeps the
-terminal constraint independent of the prediction (the final gap is ``dt·Σ u`` whatever the human
-does next, once stopped by the planned end); knots every ΔT samples keep the problem small (at most
-3 × 19 variables) and the correction smooth; a blend against ``v_r`` would inherit the table's limits."""
+the knots and the only nonlinearity is the network itself (:func:`encoder_to_casadi`); the problem's
+parameters are built in :mod:`cogblocks.amplification.plan`, which says why these decision variables."""
 
 from __future__ import annotations
 
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -40,6 +35,7 @@ from cogblocks.amplification.encoder import (
 )
 from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, _weights, _weights_key
 from cogblocks.amplification.linearised import LinearisedSolver
+from cogblocks.amplification.plan import PlanResult, equivalent_c, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
 from cogblocks.blocks.samples import plausible
@@ -48,40 +44,6 @@ from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
 __all__ = ["OptimalBlender", "PlanResult"]
-
-
-@dataclass(frozen=True)
-class PlanResult:
-    """The outcome of one decision of :class:`OptimalBlender`.
-
-    Attributes
-    ----------
-    tick : int
-        The decision's tick (the plan applies from it on).
-    end : int
-        Planned length ``L`` of the altered movement in force after the decision (0: none).
-    eps : float
-        ε̂ of the altered movement the block will emit if the human follows the prediction: the
-        emitted past, then the plan in force, classified as the online classifier does (restricted
-        to its samples faster than ``rest_speed``, resampled).
-    distance_mm : float
-        ``‖p_a(T) − p_h(T)‖`` at the end of the window under the same assumption.
-    solve_ms : float
-        Time of the decision (building the problem, solving, checking), in ms of the thread's CPU
-        time: the wall time on a dedicated core, not inflated by the slices a shared machine's
-        scheduler gives other processes (``benchmarks/optimal_blending.py`` measures both).
-    status : str
-        ``"converged"``; ``"accepted"`` (stopped by the time limit or the iteration limit, but the
-        iterate meets the clipping threshold and δ_pos); ``"fallback"``; ``"ended"`` (the planned
-        movement was over: nothing solved).
-    """
-
-    tick: int
-    end: int
-    eps: float
-    distance_mm: float
-    solve_ms: float
-    status: str
 
 
 class OptimalBlender(Block):
@@ -121,7 +83,8 @@ class OptimalBlender(Block):
     otherwise the previous plan is kept (it is defined on absolute time, so keeping it is shifting
     it), or at the first decision the table-lookup blend ``c = w̃(η_i, v_r)`` is used until a solve
     succeeds (pass-through without a table). ``fallbacks`` counts them; :attr:`results` has every
-    decision and :attr:`solve_ms` the times of those that ran the solver.
+    decision, :attr:`solve_ms` the times of those that ran the solver and :attr:`tick_ms` the CPU time
+    of every tick that worked on one (building, iterating, checking; not the ticks that only wait).
 
     Ports
     -----
@@ -160,10 +123,21 @@ class OptimalBlender(Block):
     knot_spacing : int
         Samples between knots (ΔT = 10).
     time_limit_ms : float
-        CPU-time limit of one solve (8 ms): so that the plans do not depend on the load of the
-        machine. sqpmethod: an iteration callback stops it before an iteration that, taking as long
-        as the previous one, would end past the limit; IPOPT: ``max_cpu_time``, checked at the end
-        of each iteration. Building the problem and checking the result (about 0.3 ms) come on top.
+        CPU-time limit (8 ms): so that the plans do not depend on the load of the machine.
+        sqpmethod and IPOPT: of one solve (sqpmethod: an iteration callback stops it before an
+        iteration that, taking as long as the previous one, would end past the limit; IPOPT:
+        ``max_cpu_time``, checked at the end of each iteration); building the problem and checking
+        the result come on top. linearised: of everything the block does for a decision in one
+        tick (building the problem, iterating, checking the outcome): no iteration starts that,
+        taking as long as the last one, would end past it (with the last check's time kept in
+        reserve on the tick that commits), except that a decision with no iteration yet runs one.
+    solve_ticks : int
+        Ticks one decision's solve may span (linearised only; 1). With more than one, the decision
+        at tick ``T`` plans from tick ``T + solve_ticks − 1`` on, the plan in force (or the table's
+        blend, or the pass-through) covering the ticks before it, and the solve resumes at every
+        tick until then, each within ``time_limit_ms``; the plan is committed at that tick.
+    iterations : int
+        Most iterations of one linearised solve (10).
     solver : {"sqpmethod", "ipopt", "linearised"}
         casadi's SQP with the ``qrqp`` QP solver (default), IPOPT (about 0.5 ms per iteration of
         overhead at this size), or :class:`~cogblocks.amplification.linearised.LinearisedSolver`:
@@ -184,7 +158,8 @@ class OptimalBlender(Block):
     -----
     The solve runs in the output phase of the decision's tick (it needs the projector's new
     decision) and is committed in the update phase. :attr:`results` is a record of the decisions
-    since the last reset, not block state: restoring a snapshot does not rewind it.
+    since the last reset, not block state: restoring a snapshot does not rewind it, nor a solve in
+    flight (``solve_ticks`` > 1), which :meth:`reset` drops.
 
     Bad data policy: a non-finite ``v_h`` or ``v_u`` gives a non-finite ``v_a`` on that tick, as in
     :class:`VelocityBlender` (``v_r`` only counts while the table's ``c`` < 1 is in force); for later
@@ -210,6 +185,8 @@ class OptimalBlender(Block):
         rest_speed: float = REST_SPEED,
         subspace: MovementSubspace | None = None,
         realism: float = 30.0,
+        solve_ticks: int = 1,
+        iterations: int = 10,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -245,6 +222,13 @@ class OptimalBlender(Block):
         self.rest_speed = finite_number(self, "rest_speed", rest_speed, low=0.0)
         self.subspace = checked_subspace("OptimalBlender", subspace, self.e_des, networks[0].hidden.in_features)
         self.realism = finite_number(self, "realism", realism, low=0.0)
+        self.solve_ticks = positive_int(self, "solve_ticks", solve_ticks)
+        if self.solve_ticks > 1 and self.solver != "linearised":
+            raise ValueError(
+                f"OptimalBlender: solve_ticks > 1 needs solver='linearised', got solve_ticks={self.solve_ticks} "
+                f"with solver={self.solver!r}"
+            )
+        self.iterations = positive_int(self, "iterations", iterations)
         self._delta = self.delta_pos - self.terminal_margin
         self.library = library
         self.networks = networks
@@ -262,6 +246,9 @@ class OptimalBlender(Block):
         self._z_target = math.log((CLIP_HIGH + self.margin) / (1.0 - CLIP_HIGH - self.margin))
         self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)
         self._pending: dict[str, Any] | None = None
+        self._job: dict[str, Any] | None = None  # a decision whose solve spans several ticks
+        self._check_s = 0.0  # CPU seconds of the last outcome check: kept in reserve on a committing tick
+        self.tick_ms: list[float] = []
         n = library.max_len
         add_blending_ports(self)
         self.add_state("human", np.zeros((n, 3)))  # v_h received, by tick
@@ -278,9 +265,7 @@ class OptimalBlender(Block):
     def setup(self) -> None:
         # build every solver and resampling matrix a decision may need now, not in the middle of the loop
         spacing, n = self.knot_spacing, len(self.human)
-        for m in [3 * k for k in range(1, len(range(spacing, n - 1, spacing)) + 2)]:
-            if self.solver == "linearised":
-                continue
+        for m in [3 * k for k in range(1, len(range(spacing, n - 1, spacing)) + 2)] * (self.solver != "linearised"):
             _solver(self.networks, self._key, m, self.solver, self.time_limit_ms / 1e3, self.sharpness)
         for length in range(1, n + 1):
             resampling_matrix(length)
@@ -288,7 +273,9 @@ class OptimalBlender(Block):
     def reset(self) -> None:
         super().reset()
         self.results = []
+        self.tick_ms = []
         self._pending = None
+        self._job = None
 
     @property
     def solve_ms(self) -> np.ndarray:
@@ -298,13 +285,17 @@ class OptimalBlender(Block):
     def output(self, k: int) -> None:
         t = k // self.every
         self._pending = None
-        if int(self.decisions.value) > self.handled and t < len(self.human):
-            self._pending = self._decide(t)
+        if (int(self.decisions.value) > self.handled and t < len(self.human)) or self._job is not None:
+            started = time.thread_time()
+            self._pending = self._work(t, started)
+            if "solving" in self._pending:  # a tick with a problem to solve (not a decision after the movement)
+                self._pending.pop("solving")
+                self.tick_ms.append((time.thread_time() - started) * 1e3)
         state = {"plan": self.plan, "end": self.end, "table_c": self.table_c, **(self._pending or {})}
         v_h, v_r, v_a = self.v_h.value, self.v_r.value, self.v_a.value
         if state["end"] > 0:
             v_a[...] = v_h + state["plan"][t] if t < state["end"] else 0.0
-            self.c.value[...] = _equivalent_c(v_a, v_h, v_r)
+            self.c.value[...] = equivalent_c(v_a, v_h, v_r)
         elif math.isfinite(state["table_c"]):
             self.c.value[...] = state["table_c"]
             blend(state["table_c"], v_h, v_r, v_a)
@@ -317,7 +308,8 @@ class OptimalBlender(Block):
         t = k // self.every
         if self._pending is not None:
             pending, self._pending = self._pending, None
-            self.results.append(pending.pop("result"))
+            if "result" in pending:
+                self.results.append(pending.pop("result"))
             for name, value in pending.items():
                 if np.ndim(value) == 0:
                     setattr(self, name, value)
@@ -329,83 +321,106 @@ class OptimalBlender(Block):
 
     # --- one decision ---------------------------------------------------------------------------------
 
-    def _decide(self, t: int) -> dict[str, Any]:
-        """The decision at tick ``t``: the state to commit in the update phase, with its :class:`PlanResult`."""
-        start = time.thread_time()
-        new: dict[str, Any] = {"handled": int(self.decisions.value)}
+    def _work(self, t: int, started: float) -> dict[str, Any]:
+        """This tick's work on decisions: the state to commit in the update phase (with ``result`` when one ends)."""
+        new: dict[str, Any] = {}
+        if int(self.decisions.value) > self.handled and t < len(self.human):
+            if self._job is not None:  # a new decision before the last one's plan took effect: end that one now
+                if self._job["problem"] is not None:
+                    new["solving"] = True
+                new.update(self._finish(t, {}))
+            new["handled"] = int(self.decisions.value)
+            self._job = self._begin(t, {"plan": self.plan, "end": self.end, "table_c": self.table_c, **new})
+        job = self._job
+        if job is None:
+            return new
+        job["ticks"] += 1
+        commit = t >= job["t0"] or job["problem"] is None
+        if job["problem"] is not None and (commit or job["ticks"] == 1):
+            new["solving"] = True  # building, checking: ticks that only wait for the plan's tick are not counted
+        if job["run"] is not None and not job["run"].finished:
+            # on the committing tick the last check's time stays in reserve; a decision never left without
+            # any iteration (as the single-tick solve, which always runs one)
+            deadline = started + self.time_limit_ms / 1e3 - (self._check_s if commit else 0.0)
+            done = job["run"].done
+            job["run"].run(deadline, at_least_one=commit and done == 0)
+            if job["run"].done > done:
+                new["solving"] = True
+        job["cpu"] += time.thread_time() - started
+        if commit:
+            new.update(self._finish(t, new))
+        return new
+
+    def _begin(self, t: int, state: dict[str, Any]) -> dict[str, Any]:
+        """Start the decision at tick ``t``: its problem, planned from ``t + solve_ticks − 1`` on, and its solve."""
         nearest, reference = int(self.nearest.value), int(self.reference.value)
-        lib = self.library
+        lib, n = self.library, len(self.human)
+        t0 = min(t + self.solve_ticks - 1, n - 1)
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
         # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
         # is enough: the altered movement may end before the human's, having covered the same distance sooner
-        length = max(self.end, int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
-        if not at_rest and (self.e_des or self.end == 0):
-            length = max(length, t + self.knot_spacing)
-        length = min(length, len(self.human))
+        length = max(state["end"], int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
+        if not at_rest and (self.e_des or state["end"] == 0):
+            length = max(length, t0 + self.knot_spacing)
+        length = min(length, n)
         predicted = np.zeros_like(self.human)
         if not at_rest:
-            predicted[t:] = lib.velocity[nearest, t : len(self.human)]
-        if length <= t:  # the planned movement is over: nothing left to decide
+            predicted[t:] = lib.velocity[nearest, t:n]
+        job = {"t": t, "t0": t0, "length": length, "predicted": predicted, "run": None, "problem": None,
+               "ticks": 0, "cpu": 0.0, "reference": reference}  # fmt: skip
+        if length <= t0:  # the planned movement is over: nothing left to decide
+            return job
+        if t0 > t:  # the ticks before t0 emit what the state in force emits, on the prediction
+            altered = self._emission(t, predicted, state)
+            human = np.concatenate([self.human[:t], predicted[t:]])
+        else:
+            altered, human = self.altered, self.human
+        problem = plan_problem(
+            t0, length, predicted, altered, human, self.library.velocity[reference], self.knot_spacing, self.dt,
+            [self._sign, self._z_target, self.end_speed, self._delta], self.subspace, self.realism,
+        )  # fmt: skip
+        job["problem"] = problem
+        w0 = self._initial_guess(problem, predicted, reference, nearest)
+        if self.solver == "linearised":
+            job["run"] = self._linear.start(
+                problem, w0, self._z_target, self._z_clip, self._delta, self.delta_pos, self.iterations
+            )
+        else:
+            job["solved"] = self._solve(problem, w0)
+        return job
+
+    def _finish(self, t: int, new: dict[str, Any]) -> dict[str, Any]:
+        """End the decision in flight at tick ``t``: its plan (or the fallback) and :class:`PlanResult`."""
+        job, self._job = self._job, None
+        checking = time.thread_time()
+        out: dict[str, Any] = {}
+        problem = job["problem"]
+        if problem is None:
             status = "ended"
         else:
-            problem = self._problem(t, length, predicted, reference)
-            w, multipliers, status = self._solve(problem, self._initial_guess(problem, predicted, reference, nearest))
+            if job["run"] is not None:
+                w, status, _ = job["run"].result()
+                multipliers = np.zeros(len(self.networks) + 3)
+            else:
+                w, multipliers, status = job["solved"]
+            t0, length = job["t0"], job["length"]
             if w is None:
-                new["fallbacks"] = self.fallbacks + 1
-                new["multipliers"] = np.zeros(len(self.networks) + 3)
+                out["fallbacks"] = self.fallbacks + 1
+                out["multipliers"] = np.zeros(len(self.networks) + 3)
                 if self.end == 0 and self.table is not None:
-                    new["table_c"] = self.table.lookup(nearest, reference)
+                    out["table_c"] = self.table.lookup(int(self.nearest.value), job["reference"])
             else:
                 plan = self.plan.copy()
-                plan[t:length] = problem["phi0"][:, None] * problem["u_prev"] + problem["phi"] @ w.reshape(3, -1).T
+                plan[t0:length] = problem["phi0"][:, None] * problem["u_prev"] + problem["phi"] @ w.reshape(3, -1).T
                 plan[length:] = 0.0
-                new.update(plan=plan, end=length, table_c=math.nan, multipliers=multipliers)
-        eps, distance = self._outcome(
-            t, predicted, {"plan": self.plan, "end": self.end, "table_c": self.table_c, **new}
-        )
-        new["result"] = PlanResult(
-            t, new.get("end", self.end), eps, distance, (time.thread_time() - start) * 1e3, status
-        )
-        return new
-
-    def _problem(self, t: int, length: int, predicted: np.ndarray, reference: int) -> dict[str, Any]:
-        """The parameters of the decision at tick ``t`` for a movement of ``length`` samples."""
-        dt = self.dt
-        u_prev = self.altered[t - 1] - self.human[t - 1] if t > 0 else np.zeros(3)
-        knots = np.r_[t - 1, np.arange(t - 1 + self.knot_spacing, length - 1, self.knot_spacing), length - 1]
-        samples = np.arange(t, length)
-        basis = np.stack([np.interp(samples, knots, e) for e in np.eye(len(knots))], axis=1)
-        phi0, phi = basis[:, 0], basis[:, 1:] * _U_SCALE  # phi: samples per knot value in units of _U_SCALE
-        n = phi.shape[1]
-        resample = resampling_matrix(length)
-        base = np.concatenate([self.altered[:t], predicted[t:length] + phi0[:, None] * u_prev])
-        reach = self.human[:t].sum(axis=0)
-        if not np.linalg.norm(reach) > 0.0:
-            reach = self.library.velocity[reference].sum(axis=0)
-        direction = reach / max(np.linalg.norm(reach), 1e-12)
-        speed = np.zeros((3, n))
-        speed[:, -1] = _U_SCALE * direction  # the last knot's speed along the reach direction
-        # knots, axis-major: x = x0 + A w, cost wᵀ H w + 2 qᵀ w, gap g0 + C w, last speed dᵀ w
-        problem = {
-            "x0": (resample @ base).T.reshape(-1),
-            "A": np.kron(np.eye(3), resample[:, t:] @ phi),
-            "H": np.kron(np.eye(3), phi.T @ phi / _U_SCALE**2),  # the cost Σ‖u‖² in units of _U_SCALE²
-            "q": ((phi.T @ phi0)[None, :] * u_prev[:, None] / _U_SCALE**2).ravel(),
-            "C": np.kron(np.eye(3), dt * phi.sum(axis=0)),
-            "g0": dt
-            * ((self.altered[:t] - self.human[:t]).sum(axis=0) + phi0.sum() * u_prev - predicted[length:].sum(axis=0)),
-            "d": speed.ravel(),
-            "rhs": [self._sign, self._z_target, self.end_speed - direction @ predicted[length - 1], self._delta],
-            "knots": knots[1:],
-            "phi": phi,
-            "phi0": phi0,
-            "u_prev": u_prev,
-        }
-        if self.subspace is not None:  # penalise the altered movement's distance from realistic movements
-            h, q = self.subspace.penalty(problem["A"], problem["x0"])
-            problem["H"] = problem["H"] + self.realism * h / _U_SCALE**2
-            problem["q"] = problem["q"] + self.realism * q / _U_SCALE**2
-        return problem
+                out.update(plan=plan, end=length, table_c=math.nan, multipliers=multipliers)
+        state = {"plan": self.plan, "end": self.end, "table_c": self.table_c, **new, **out}
+        eps, distance = self._outcome(t, job["predicted"], state)
+        now = time.thread_time()
+        self._check_s = now - checking
+        cpu = job["cpu"] + now - checking  # the ticks before, and this tick's check (its solving is counted)
+        out["result"] = PlanResult(job["t"], state["end"], eps, distance, cpu * 1e3, status, job["ticks"])
+        return out
 
     def _initial_guess(
         self, problem: dict[str, Any], predicted: np.ndarray, reference: int, nearest: int
@@ -430,11 +445,6 @@ class OptimalBlender(Block):
     def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
         """Knots (None: fall back), multipliers and status of one solve."""
         members, m = len(self.networks), len(w0)
-        if self.solver == "linearised":
-            w, status, _ = self._linear.solve(
-                problem, w0, self._z_target, self._z_clip, self._delta, self.delta_pos, self.time_limit_ms / 1e3
-            )
-            return w, np.zeros(members + 3), status
         solver = _solver(self.networks, self._key, m, self.solver, self.time_limit_ms / 1e3, self.sharpness)
         slack = max(self._z_target - self._sign * self._logit(problem["x0"] + problem["A"] @ w0), 0.0)
         if solver.deadline is not None:
@@ -461,36 +471,23 @@ class OptimalBlender(Block):
             return w, multipliers, "accepted"
         return None, multipliers, "fallback"
 
-    def _outcome(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> tuple[float, float]:
-        """ε̂ and terminal distance (mm) of the movement emitted under ``state`` if the human follows ``predicted``."""
-        human = np.concatenate([self.human[:t], predicted[t:]])
-        future = human[t:]
+    def _emission(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> np.ndarray:
+        """The movement emitted under ``state`` (the past, then from ``t`` on) if the human follows ``predicted``."""
+        future = predicted[t:]
         if state["end"] > 0:
             future = future + state["plan"][t:]
             future[max(state["end"] - t, 0) :] = 0.0
         elif math.isfinite(state["table_c"]):
             c = state["table_c"]
-            future = c * future + (1.0 - c) * self.library.velocity[int(self.reference.value), t : len(human)]
-        altered = np.concatenate([self.altered[:t], future])
+            future = c * future + (1.0 - c) * self.library.velocity[int(self.reference.value), t : len(predicted)]
+        return np.concatenate([self.altered[:t], future])
+
+    def _outcome(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> tuple[float, float]:
+        """ε̂ and terminal distance (mm) of the movement emitted under ``state`` if the human follows ``predicted``."""
+        human = np.concatenate([self.human[:t], predicted[t:]])
+        altered = self._emission(t, predicted, state)
         distance = float(np.linalg.norm(self.dt * (altered - human).sum(axis=0)))
         length = movement_length(altered, self.rest_speed)
         if length == 0:
             return math.nan, distance
-        return _sigmoid(self._logit((resampling_matrix(length) @ altered[:length]).T.reshape(-1))), distance
-
-
-def _sigmoid(z: float) -> float:
-    e = math.exp(-abs(z))
-    return 1.0 / (1.0 + e) if z >= 0 else e / (1.0 + e)
-
-
-def _equivalent_c(v_a: np.ndarray, v_h: np.ndarray, v_r: np.ndarray) -> float:
-    """The ``c`` whose blend ``c·v_h + (1 − c)·v_r`` is closest to ``v_a``, clipped to [0, 1] (1 if undefined)."""
-    if not (np.all(np.isfinite(v_a)) and np.all(np.isfinite(v_h)) and np.all(np.isfinite(v_r))):
-        return 1.0
-    span = v_h - v_r
-    scale = float(np.abs(span).max())
-    if not scale > 1e-6:
-        return 1.0
-    span = span / scale  # no overflow for huge (finite) inputs
-    return min(max(float(((v_a - v_r) / scale) @ span) / float(span @ span), 0.0), 1.0)
+        return sigmoid(self._logit((resampling_matrix(length) @ altered[:length]).T.reshape(-1))), distance

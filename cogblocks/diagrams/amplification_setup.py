@@ -9,18 +9,52 @@ from functools import lru_cache
 import numpy as np
 
 from cogblocks.amplification import EncoderNet, SolutionTable, load_encoder, solution_table
-from cogblocks.amplification.judges import JUDGE_ENSEMBLE, EncoderEnsemble, Judges, KinematicJudge, load_ensemble
+from cogblocks.amplification.judges import (
+    BLENDER_ENSEMBLE,
+    JUDGE_ENSEMBLE,
+    EncoderEnsemble,
+    Judges,
+    KinematicJudge,
+    load_ensemble,
+)
 from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.amplification.subspace import MovementSubspace, movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
-__all__ = ["OPTIMISED", "AmplificationSetup", "amplification_judges", "amplification_setup", "optimised_subspace"]
+__all__ = [
+    "BLENDER_WITH_ENCODER",
+    "OPTIMISED",
+    "AmplificationSetup",
+    "amplification_judges",
+    "amplification_setup",
+    "blender_networks",
+    "optimised_subspace",
+]
 
 #: How the validation runs the optimised blender (chosen on an inner split of the training part, see
-#: docs/pop-amplification.md): the sequential-QP solver on the exact networks, a 3.5 ms CPU limit per
-#: solve, plans for ε̂ ≥ 0.99 (≤ 0.01), and a penalty (weight ``realism``) on the altered movement's
-#: distance from the subspace of the desired class's ``components`` leading principal directions.
-OPTIMISED = {"solver": "linearised", "time_limit_ms": 3.5, "realism": 1000.0, "margin": 0.09, "components": 12}
+#: docs/pop-amplification.md): the sequential-QP solver on the exact networks, spread over 8 ticks of at
+#: most 4 ms of CPU time each (building, solving and checking included) and 40 iterations, plans for
+#: ε̂ ≥ 0.999 (≤ 0.001), and a penalty (weight ``realism``) on the altered movement's distance from the
+#: subspace of the desired class's ``components`` leading principal directions.
+OPTIMISED = {
+    "solver": "linearised",
+    "time_limit_ms": 4.0,
+    "solve_ticks": 8,
+    "iterations": 40,
+    "realism": 3000.0,
+    "margin": 0.099,
+    "components": 12,
+}
+
+#: Whether the optimised blender constrains the shipped encoder too, besides the blender ensemble
+#: (``encoder_ensemble.pt``, trained with the judges' recipe).
+BLENDER_WITH_ENCODER = True
+
+
+def blender_networks(encoder: EncoderNet) -> list[EncoderNet]:
+    """The networks the optimised blender constrains: the shipped blender ensemble (and ``encoder``, see
+    :data:`BLENDER_WITH_ENCODER`)."""
+    return [*([encoder] if BLENDER_WITH_ENCODER else []), *load_ensemble(BLENDER_ENSEMBLE)]
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,8 @@
 Usage::
 
     python -m cogblocks.experiments.amplification_inner --e-des 1 --limit 30 [--components 12]
-        [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised]
+        [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised] [--solve-ticks 1]
+        [--iterations 10]
 
 The training part of the shipped encoder's split is split again, seeded and stratified
 (``ReachLibrary.split(0.3, 100)``); w̃ and the realism subspace are computed on the inner training
@@ -23,7 +24,6 @@ from typing import Any
 import torch
 
 from cogblocks.amplification import solution_table
-from cogblocks.amplification.judges import BLENDER_ENSEMBLE, load_ensemble
 from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.diagrams.amplification import run_amplification
 from cogblocks.diagrams.amplification_setup import (
@@ -31,6 +31,7 @@ from cogblocks.diagrams.amplification_setup import (
     AmplificationSetup,
     amplification_judges,
     amplification_setup,
+    blender_networks,
 )
 
 __all__ = ["INNER_SEED", "evaluate", "inner_setup", "main"]
@@ -54,7 +55,7 @@ def inner_setup(
 def evaluate(e_des: int, limit: int, components: int, **options: Any) -> dict[str, Any]:
     """The optimised row of :func:`run_amplification` on the first ``limit`` inner movements, with ``options``."""
     setup = inner_setup(e_des, components)
-    networks = [setup.encoder, *load_ensemble(BLENDER_ENSEMBLE)]
+    networks = blender_networks(setup.encoder)
     result = run_amplification(
         ("optimised",), limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
         blender_networks=networks, optimised=options,
@@ -73,9 +74,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--margin", type=float, default=defaults["margin"])
     parser.add_argument("--time-limit-ms", type=float, default=defaults["time_limit_ms"])
     parser.add_argument("--solver", default=defaults["solver"], choices=("linearised", "sqpmethod", "ipopt"))
+    parser.add_argument("--solve-ticks", type=int, default=defaults.get("solve_ticks", 1))
+    parser.add_argument("--iterations", type=int, default=defaults.get("iterations", 10))
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms}
+    options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms,
+               "solve_ticks": args.solve_ticks, "iterations": args.iterations}  # fmt: skip
     row = evaluate(args.e_des, args.limit, args.components, solver=args.solver, **options)
     print(json.dumps({"e_des": args.e_des, "components": args.components, **options, "solver": args.solver, **row}))
     return 0

@@ -2,16 +2,18 @@
 
 Usage::
 
-    python -m cogblocks.training.judges --seed 0 [--epochs 40]
+    python -m cogblocks.training.judges --seed 0 [--recipe NAME]
 
-Both ensembles are trained only on the training part of the shipped encoder's split (the
-validation movements stay unseen) and are disjoint:
+Both ensembles are trained with the same recipe (:data:`~cogblocks.training.recipe.CHOSEN`, chosen by
+cross-validation inside the training part, ``python -m cogblocks.training.recipe``), only on the
+training part of the shipped encoder's split (the validation movements stay unseen), and are
+disjoint (other folds, other seeds):
 
-- the blender's ensemble: the shipped encoder plus ``blender_members − 1`` networks trained on the
-  whole training part with torch seeds ``7000 + 10·seed + i`` (``encoder_ensemble.pt``);
+- the blender's ensemble: ``blender_members`` networks (:func:`train_blender_ensemble`), torch seeds
+  ``7000 + 10·seed + i`` (``encoder_ensemble.pt``);
 - the judges: ``judges`` networks, each trained on the training part without one of ``judges``
-  seeded folds (fold permutation seeded by ``seed``), torch seeds ``9000 + 10·seed + i``
-  (``judges.pt``).
+  seeded, stratified folds (:func:`~cogblocks.training.recipe.train_fold_ensemble`, fold seed
+  ``seed``), torch seeds ``9000 + 10·seed + i`` (``judges.pt``).
 
 Everything is seeded and runs on one thread, so a seed reproduces the weights exactly. The
 checkpoints hold float16 weights (about 25 kB per network).
@@ -22,6 +24,7 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -32,28 +35,44 @@ from cogblocks.amplification.judges import BLENDER_ENSEMBLE, JUDGE_ENSEMBLE, ens
 from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.reach import ReachLibrary
-from cogblocks.training.encoder import EncoderConfig, train_network
+from cogblocks.training.recipe import CHOSEN, RECIPES, TrainingRecipe, train_fold_ensemble, train_member
 
 __all__ = ["main", "train_blender_ensemble", "train_judges"]
 
 WEIGHTS = Path(__file__).resolve().parent.parent / "data" / "weights"
+#: Networks of the blender's ensemble (``encoder_ensemble.pt``); the shipped encoder is not one of them.
+BLENDER_MEMBERS = 2
+#: Fold seeds of the blender's ensemble are offset from the judges' so that their folds differ.
+BLENDER_FOLD_OFFSET = 1000
 
 
 def train_blender_ensemble(
     library: ReachLibrary,
     train: np.ndarray,
-    config: EncoderConfig,
+    recipe: TrainingRecipe,
     seed: int,
     members: int,
     *,
     log: Callable[[str], None] | None = print,
 ) -> list[EncoderNet]:
-    """``members`` networks trained on all of ``train`` with torch seeds ``7000 + 10·seed + i``."""
-    inputs, fear = classifier_inputs(library)[train], library.fear[train]
+    """``members`` networks with torch seeds ``7000 + 10·seed + i``.
+
+    Without early stopping in ``recipe`` each is trained on all of ``train``; with it, each on
+    ``train`` without one of ``max(members, 2)`` folds (fold seed ``seed + 1000``: not the judges'),
+    stopped early on that fold.
+    """
+    inputs, fear = classifier_inputs(library), library.fear
+    if recipe.patience > 0:
+        folds = max(members, 2)
+        networks = train_fold_ensemble(
+            inputs, fear, np.asarray(train), recipe, fold_seed=seed + BLENDER_FOLD_OFFSET,
+            torch_seed=7000 + 10 * seed, members=folds, log=log, name="blender ensemble member",
+        )  # fmt: skip
+        return networks[:members]
     networks = []
     for i in range(members):
         started = time.perf_counter()
-        networks.append(train_network(inputs, fear, config, 7000 + 10 * seed + i))
+        networks.append(train_member(inputs[train], fear[train], recipe, 7000 + 10 * seed + i)[0])
         if log is not None:
             log(f"blender ensemble member {i + 1}/{members} ({time.perf_counter() - started:.1f} s)")
     return networks
@@ -62,27 +81,17 @@ def train_blender_ensemble(
 def train_judges(
     library: ReachLibrary,
     train: np.ndarray,
-    config: EncoderConfig,
+    recipe: TrainingRecipe,
     seed: int,
     members: int = 5,
     *,
     log: Callable[[str], None] | None = print,
 ) -> list[EncoderNet]:
-    """``members`` networks, each trained on ``train`` without one of ``members`` seeded folds."""
-    inputs = classifier_inputs(library)
-    folds = np.array_split(np.random.default_rng(seed).permutation(np.asarray(train)), members)
-    networks = []
-    for i, fold in enumerate(folds):
-        started = time.perf_counter()
-        rows = np.setdiff1d(train, fold)
-        networks.append(train_network(inputs[rows], library.fear[rows], config, 9000 + 10 * seed + i))
-        if log is not None:
-            accuracy = float(np.mean((networks[-1].predict(inputs[fold]) > 0.5) == library.fear[fold]))
-            log(
-                f"judge {i + 1}/{members}: accuracy on its held-out fold {accuracy:.3f} "
-                f"({time.perf_counter() - started:.1f} s)"
-            )
-    return networks
+    """``members`` networks, each trained on ``train`` without one of ``members`` seeded, stratified folds."""
+    return train_fold_ensemble(
+        classifier_inputs(library), library.fear, np.asarray(train), recipe, fold_seed=seed,
+        torch_seed=9000 + 10 * seed, members=members, log=log, name="judge",
+    )  # fmt: skip
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -94,24 +103,26 @@ def main(argv: Sequence[str] | None = None) -> None:
         description="Train the optimised blender's encoder ensemble and the independent judges' ensemble.",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the folds and the weights (default 0)")
-    parser.add_argument("--epochs", type=int, default=EncoderConfig.epochs, help="passes over the training data")
-    parser.add_argument("--blender-members", type=int, default=2, help="networks the blender constrains (default 2)")
+    parser.add_argument("--recipe", default=CHOSEN, choices=sorted(RECIPES), help=f"training recipe (default {CHOSEN})")
+    parser.add_argument(
+        "--blender-members", type=int, default=BLENDER_MEMBERS,
+        help=f"networks the blender constrains (default {BLENDER_MEMBERS})",
+    )  # fmt: skip
     parser.add_argument("--judges", type=int, default=5, help="networks of the judges' ensemble (default 5)")
     parser.add_argument("--out", type=Path, default=WEIGHTS, help=f"directory to write to (default {WEIGHTS})")
     args = parser.parse_args(argv)
 
     torch.set_num_threads(1)
     setup = amplification_setup(None, 1)
-    config = EncoderConfig(epochs=args.epochs)
-    meta = {"seed": args.seed, "library_sha256": library_fingerprint(setup.library), "epochs": args.epochs}
-    extra = train_blender_ensemble(setup.library, setup.train, config, args.seed, args.blender_members - 1)
-    judges = train_judges(setup.library, setup.train, config, args.seed, args.judges)
+    recipe = RECIPES[args.recipe]
+    meta = {"seed": args.seed, "library_sha256": library_fingerprint(setup.library), "recipe": args.recipe,
+            **{f"recipe_{k}": v for k, v in asdict(recipe).items()}}  # fmt: skip
+    blender = train_blender_ensemble(setup.library, setup.train, recipe, args.seed, args.blender_members)
+    judges = train_judges(setup.library, setup.train, recipe, args.seed, args.judges)
     args.out.mkdir(parents=True, exist_ok=True)
-    torch.save(
-        ensemble_checkpoint(extra, role="blender (with the shipped encoder)", **meta), args.out / BLENDER_ENSEMBLE
-    )
+    torch.save(ensemble_checkpoint(blender, role="blender", **meta), args.out / BLENDER_ENSEMBLE)
     torch.save(ensemble_checkpoint(judges, role="judges", **meta), args.out / JUDGE_ENSEMBLE)
-    print(f"saved {len(extra)} + 1 blender networks and {len(judges)} judges to {args.out}")
+    print(f"saved {len(blender)} blender networks and {len(judges)} judges to {args.out}")
 
 
 if __name__ == "__main__":

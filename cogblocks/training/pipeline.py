@@ -19,7 +19,7 @@ import json
 import os
 import time
 from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -33,11 +33,12 @@ from cogblocks.data.features import classifier_inputs
 from cogblocks.data.loaders import load_csv, load_npz, load_velocity_data_mat
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.diagrams.amplification import run_amplification
-from cogblocks.diagrams.amplification_setup import AmplificationSetup, optimised_subspace
+from cogblocks.diagrams.amplification_setup import BLENDER_WITH_ENCODER, AmplificationSetup, optimised_subspace
 from cogblocks.training.amplification_env import record_episodes
 from cogblocks.training.corrector import CorrectorConfig, train
 from cogblocks.training.encoder import EncoderConfig, cross_validate
-from cogblocks.training.judges import train_blender_ensemble, train_judges
+from cogblocks.training.judges import BLENDER_MEMBERS, train_blender_ensemble, train_judges
+from cogblocks.training.recipe import CHOSEN, RECIPES
 
 __all__ = ["DIRECTIONS", "load_library", "run_pipeline"]
 
@@ -137,10 +138,12 @@ def run_pipeline(
     folds = cross_validate(config, seed, library=movements, log=say)
     best = max(folds, key=lambda r: r.accuracy)
     encoder = best.network
-    say("blender ensemble and judges")
-    blender_networks = [encoder, *train_blender_ensemble(library, train_idx, config, seed, 1, log=say)]
+    recipe = RECIPES[CHOSEN] if not (quick or encoder_epochs) else replace(RECIPES[CHOSEN], epochs=epochs)
+    say(f"blender ensemble and judges (recipe '{CHOSEN}', at most {recipe.epochs} epochs)")
+    ensemble = train_blender_ensemble(library, train_idx, recipe, seed, BLENDER_MEMBERS, log=say)
+    blender_networks = [*([encoder] if BLENDER_WITH_ENCODER else []), *ensemble]
     judges = Judges(
-        EncoderEnsemble(train_judges(library, train_idx, config, seed, 5, log=say)),
+        EncoderEnsemble(train_judges(library, train_idx, recipe, seed, 5, log=say)),
         KinematicJudge(library.dt).fit(movements.velocity, movements.fear),
     )
     setups = {}
@@ -159,7 +162,7 @@ def run_pipeline(
     corrector = train(corrector_config, seed, recorded, log=say).network
 
     fingerprint = library_fingerprint(library)
-    meta = {"seed": seed, "library_sha256": fingerprint, "epochs": epochs}
+    meta = {"seed": seed, "library_sha256": fingerprint, "recipe": CHOSEN, "epochs": recipe.epochs}
     torch.save(
         {
             "state_dict": encoder.state_dict(),
@@ -172,7 +175,7 @@ def run_pipeline(
         },
         out / "encoder.pt",
     )
-    torch.save(ensemble_checkpoint(blender_networks[1:], role="blender", **meta), out / "encoder_ensemble.pt")
+    torch.save(ensemble_checkpoint(ensemble, role="blender", **meta), out / "encoder_ensemble.pt")
     torch.save(ensemble_checkpoint(judges.ensemble.networks, role="judges", **meta), out / "judges.pt")
     torch.save(
         {"state_dict": corrector.state_dict(), "seed": seed, "config": asdict(corrector_config)}, out / "corrector.pt"

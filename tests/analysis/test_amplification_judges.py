@@ -20,8 +20,8 @@ from cogblocks.data.features import resample_movement
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import amplification_judges, amplification_setup, pop_amplification
 from cogblocks.sim import Simulator
-from cogblocks.training.encoder import EncoderConfig
 from cogblocks.training.judges import train_judges
+from cogblocks.training.recipe import TrainingRecipe
 
 torch.set_num_threads(1)
 
@@ -77,7 +77,7 @@ def test_shipped_ensembles_are_disjoint_and_reproducible(setup):
             assert not np.allclose(weights[i], weights[j])
     assert judges[0].checkpoint["role"] == "judges"
     # the judges' training is seeded: a tiny run twice gives the same networks
-    config = EncoderConfig(epochs=1)
+    config = TrainingRecipe(epochs=1)
     small = generate_reach_library(3, n_subjects=2, n_fear=15, n_no_fear=15)
     a = train_judges(small, np.arange(24), config, seed=0, members=2, log=None)
     b = train_judges(small, np.arange(24), config, seed=0, members=2, log=None)

@@ -149,10 +149,15 @@ def test_run_amplification_and_cli(monkeypatch, capsys):
             "solve_ms_p99",
             "fallbacks",
             "decisions",
+            "decision_ms_p50",
+            "decision_ms_p99",
+            "solve_ticks",
         }
         | judged
     )
     assert row["n"] == 1 and 0 < row["solve_ms_p50"] <= row["solve_ms_p99"]
+    # a decision's CPU time is the sum over its ticks: never below one tick's
+    assert row["solve_ticks"] >= row["decisions"] and row["decision_ms_p99"] >= row["solve_ms_p50"]
     monkeypatch.setattr(
         amplification, "run_amplification", lambda *args, **kwargs: run_amplification(*args, **kwargs, limit=1)
     )
@@ -161,4 +166,4 @@ def test_run_amplification_and_cli(monkeypatch, capsys):
     assert list(printed) == ["blend", "optimised", "e_des_0"] and "solve_ms_p99" in printed["optimised"]
     assert list(printed["e_des_0"]) == ["blend", "optimised"] and "solve_ms_p99" in printed["e_des_0"]["optimised"]
     assert main(["run", "amplification", "--variant", "optimised"]) == 0
-    assert "time per decision p50" in capsys.readouterr().out
+    assert "CPU time per tick p50" in capsys.readouterr().out

@@ -9,6 +9,7 @@ from cogblocks.amplification import NoCorrection, OptimalBlender
 from cogblocks.amplification.encoder import movement_length
 from cogblocks.amplification.judges import BLENDER_ENSEMBLE, load_ensemble
 from cogblocks.amplification.linearised import box_qp
+from cogblocks.amplification.plan import plan_problem
 from cogblocks.amplification.subspace import load_subspace, movement_subspace
 from cogblocks.data.features import classifier_inputs, resample_movement
 from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, pop_amplification
@@ -145,3 +146,81 @@ def test_out_of_time_falls_back_to_the_table(setup, networks):
         if r.status == "accepted":
             assert r.eps > 0.9 and r.distance_mm <= DELTA_POS_MM
     assert np.all(np.isfinite(trace["v_a"]))
+
+
+class TickClock:
+    """A clock that advances 1 ms at every reading: the budget logic counted in readings, not wall time."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        self.now += 1e-3
+        return self.now
+
+
+def first_problem(setup, networks):
+    """A blender and the problem of a decision at tick 10 of a held-out movement (its own future as the prediction)."""
+    blender = OptimalBlender(setup.movements, networks, setup.table, subspace=setup.subspace, solver="linearised")
+    lib, human, t = setup.library, int(setup.humans[0]), 10
+    past = np.zeros((lib.max_len, 3))
+    past[:t] = lib.velocity[human, :t]
+    predicted = np.zeros_like(past)
+    predicted[t:] = lib.velocity[human, t:]
+    length = min(int(lib.length[human]) + 10, lib.max_len)
+    rhs = [1.0, blender._z_target, blender.end_speed, blender._delta]
+    problem = plan_problem(t, length, predicted, past, past, past, 10, lib.dt, rhs, setup.subspace, 1000.0)
+    return blender, problem, np.zeros(3 * len(problem["knots"]))
+
+
+def test_a_solve_spread_over_calls_is_the_solve_in_one_go(setup, networks):
+    blender, problem, w0 = first_problem(setup, networks)
+    solver = blender._linear
+    args = (problem, w0, blender._z_target, blender._z_clip, blender._delta, blender.delta_pos, 6)
+    whole = solver.start(*args)
+    assert whole.run(np.inf, clock=TickClock())
+    clock, pieces, calls = TickClock(), solver.start(*args), 0
+    while not pieces.finished:
+        solver.iteration = 0.0
+        before = pieces.done
+        pieces.run(clock.now + 2.5e-3, clock=clock)  # room for one iteration (two readings) per call
+        assert pieces.done - before == 1
+        calls += 1
+    assert calls == whole.done
+    best, status, done = pieces.result()
+    np.testing.assert_array_equal(best, whole.result()[0])
+    assert (status, done) == whole.result()[1:]
+
+
+def test_no_iteration_starts_past_the_budget(setup, networks):
+    blender, problem, w0 = first_problem(setup, networks)
+    solver = blender._linear
+    run = solver.start(problem, w0, blender._z_target, blender._z_clip, blender._delta, blender.delta_pos, 10)
+    clock = TickClock()
+    solver.iteration = 0.0
+    # each iteration reads the clock twice (1 ms each): started at 1, 3, then 5 + 1 would pass the 5.5 ms deadline
+    run.run(5.5e-3, clock=clock)
+    assert run.done == 2 and solver.iteration == pytest.approx(1e-3)
+    assert not run.run(clock.now + 0.5e-3, clock=clock) and run.done == 2  # no room: nothing runs
+    run.run(clock.now + 0.5e-3, clock=clock, at_least_one=True)
+    assert run.done == 3
+
+
+@pytest.mark.parametrize("ticks", [1, 4])
+def test_solve_ticks_plans_from_the_last_tick(setup, networks, ticks):
+    blender = OptimalBlender(
+        setup.movements, networks, setup.table, subspace=setup.subspace, solver="linearised",
+        time_limit_ms=1e3, solve_ticks=ticks, iterations=30,
+    )  # fmt: skip
+    trace = replay(setup, blender, int(setup.humans[0]))
+    solved = [r for r in blender.results if r.status != "ended"]
+    assert solved and all(1 <= r.ticks <= ticks for r in blender.results)
+    first = solved[0].tick
+    # before the first plan takes effect (tick first + ticks − 1) the human velocity passes through
+    np.testing.assert_array_equal(trace["v_a"][: first + ticks - 1], trace["v_h"][: first + ticks - 1])
+    assert not np.allclose(trace["v_a"][first + ticks - 1], trace["v_h"][first + ticks - 1])
+    # ticks that worked: at least the first and the committing one of each decision, never more than it spanned
+    assert sum(min(r.ticks, 2) for r in solved) <= len(blender.tick_ms) <= sum(r.ticks for r in solved)
+    np.testing.assert_allclose(blender.solve_ms, [r.solve_ms for r in solved])
+    with pytest.raises(ValueError, match="solve_ticks > 1 needs solver='linearised'"):
+        OptimalBlender(setup.movements, networks, setup.table, solve_ticks=2)

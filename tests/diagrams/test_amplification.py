@@ -104,7 +104,8 @@ def test_cli_json_and_plot(capsys, tmp_path, monkeypatch):
     judged = {"judges", "encoded_independent", "judges_agreement"}
     remove = result.pop("e_des_0")
     for name, row in [*result.items(), *remove.items()]:
-        extra = {"solve_ms_p50", "solve_ms_p99", "fallbacks", "decisions"} if name == "optimised" else set()
+        timing = {"solve_ms_p50", "solve_ms_p99", "decision_ms_p50", "decision_ms_p99", "solve_ticks"}
+        extra = {*timing, "fallbacks", "decisions"} if name == "optimised" else set()
         assert set(row) == {"encoded", "terminal_ok", "final_distance_mm", "n"} | extra | judged
         assert row["encoded_independent"] == row["judges"]["ensemble"] and set(row["judges"]) == {
             "ensemble",

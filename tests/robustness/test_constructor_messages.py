@@ -391,6 +391,8 @@ CASES = [
     case("OptimalBlender", "realism", -1.0, "[0.0, inf)"),
     case("OptimalBlender", "sharpness", math.inf, "(0.0, inf)"),
     case("OptimalBlender", "rest_speed", -1.0, "[0.0, inf)"),
+    case("OptimalBlender", "solve_ticks", 0, "integer >= 1"),
+    case("OptimalBlender", "iterations", 0, "integer >= 1"),
 ]
 
 

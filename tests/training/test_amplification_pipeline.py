@@ -13,7 +13,9 @@ from cogblocks.cli import main
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.loaders import DataFormatError, load_csv, load_npz, save_csv
 from cogblocks.data.reach import generate_reach_library
+from cogblocks.training.judges import BLENDER_MEMBERS
 from cogblocks.training.pipeline import DIRECTIONS, load_library, run_pipeline
+from cogblocks.training.recipe import CHOSEN
 
 torch.set_num_threads(1)
 
@@ -79,7 +81,9 @@ def test_run_pipeline_on_a_renamed_library(library, tmp_path):
     held_out = library.subset(val)
     accuracy = np.mean((encoder.predict(classifier_inputs(held_out)) > 0.5) == held_out.fear)
     assert report["encoder_held_out_accuracy"] == pytest.approx(accuracy)
-    assert len(load_ensemble(out / "judges.pt")) == 5 and len(load_ensemble(out / "encoder_ensemble.pt")) == 1
+    blender = load_ensemble(out / "encoder_ensemble.pt")
+    assert len(load_ensemble(out / "judges.pt")) == 5 and len(blender) == BLENDER_MEMBERS
+    assert blender[0].checkpoint["recipe"] == CHOSEN
     # the optimised blender's subspaces: the PCA of the training part's movements of each direction's class
     movements = library.subset(train)
     for name, e_des in DIRECTIONS.items():
