@@ -29,7 +29,11 @@ from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.pacing import _MODES, MEAN, NONE, PACE, PacingMotion
 from cogblocks.sync.staged import StagedPrediction
 
-__all__ = ["GuardedPacingMotion", "phase_error"]
+__all__ = ["MARGIN", "GuardedPacingMotion", "phase_error"]
+
+#: Default ``margin``: twice :class:`PacingMotion`'s. Tuned on the validation split (38 groups where the circular mean
+#: changes r, cut to 60 s): the same mean gain, and it removes the small losses (worst −0.54 % → 0.00 %).
+MARGIN = 0.01
 
 
 def phase_error(predicted: np.ndarray, observed: np.ndarray) -> float:
@@ -43,7 +47,7 @@ class GuardedPacingMotion(PacingMotion):
     """:class:`PacingMotion` with a check of its model's predictions and a decision spread over each period.
 
     See the module docstring. Every parameter of :class:`PacingMotion` keeps its meaning (``start``: what
-    the block does before its model has passed a check), plus:
+    the block does before its model has passed a check; ``margin`` defaults to :data:`MARGIN`), plus:
 
     Parameters
     ----------
@@ -74,7 +78,7 @@ class GuardedPacingMotion(PacingMotion):
         fallback: str = "none",
         **pacing: Any,
     ) -> None:
-        super().__init__(n, assisted, **pacing)
+        super().__init__(n, assisted, **{"margin": MARGIN} | pacing)
         self.tolerance = finite_number(self, "tolerance", tolerance, low=0.0)
         self.fallback = _MODES[one_of(self, "fallback", fallback, tuple(_MODES))]
         self.add_state("error", math.inf)  # the last check's error (inf: none passed yet)
