@@ -37,6 +37,7 @@ MODULES = [
     "benchmarks.optimal_blending",
     "benchmarks.mpc",
     "benchmarks.pace",
+    "benchmarks.guard",
     "benchmarks.soak",
     "benchmarks.sweep",
     "benchmarks.live",

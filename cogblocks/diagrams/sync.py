@@ -62,6 +62,12 @@ def _pace_motion(group: SyncGroup) -> Block:
     return PacingMotion(group.n, group.assisted, adjacency=group.graph)
 
 
+def _guard_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import GuardedPacingMotion
+
+    return GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph)
+
+
 #: Motion computers available by name: each builds a fresh block for a group.
 #: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --randomised --seed 0``),
 #: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
@@ -72,6 +78,7 @@ def _pace_motion(group: SyncGroup) -> Block:
 #: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
+    "guard": _guard_motion,
     "lookahead": _lookahead_motion,
     "mean": _mean_motion,
     "mpc": _mpc_motion,

@@ -22,6 +22,7 @@ from cogblocks.sync.stability import LambdaReport, check_blender, lambda_report
 _LAZY = {
     "DQNPolicy": "cogblocks.sync.dqn_policy",
     "GroupIdentifier": "cogblocks.sync.identification",
+    "GuardedPacingMotion": "cogblocks.sync.guarded",
     "MPCMotion": "cogblocks.sync.mpc",
     "PacingMotion": "cogblocks.sync.pacing",
 }
@@ -33,6 +34,7 @@ __all__ = [
     "BlenderParams",
     "DQNPolicy",
     "GroupIdentifier",
+    "GuardedPacingMotion",
     "KuramotoGroup",
     "KuramotoOscillator",
     "L2Sync",

@@ -36,7 +36,7 @@ from cogblocks.sync.identification import KuramotoRLS, usable_phases
 from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.motion import OMEGA_L3_LIMIT, _MotionPorts
 
-__all__ = ["MEAN", "NONE", "PACE", "PacingMotion", "predicted_order"]
+__all__ = ["MEAN", "NONE", "PACE", "PacingMotion", "euler_step", "predicted_order"]
 
 #: Candidate kinds: leave θ_L0 unaltered, follow the others' circular mean, pace at a constant frequency.
 NONE, MEAN, PACE = 0, 1, 2
@@ -84,32 +84,56 @@ def predicted_order(
         The predicted mean of r over steps 0 … steps − 1 (the start included).
     """
     kinds, values, anchors = (np.asarray(c, dtype=float) for c in candidates)
-    omega, gain = model
-    n, count = len(theta), len(kinds)
-    others = np.arange(n) != assisted
-    pace, mean = kinds == PACE, kinds == MEAN
-    span, low = blender.lambda_max - blender.lambda_min, blender.lambda_min
+    count = len(kinds)
     theta = np.tile(np.asarray(theta, dtype=float), (count, 1))
     lam = np.full(count, float(lam))
     total = np.zeros(count)
     for s in range(steps):
-        sin, cos = np.sin(theta), np.cos(theta)
-        l0 = theta[:, assisted]
-        d = np.where(pace, wrap_pi(anchors + values * (s * step) - l0), 0.0)
-        if mean.any():
-            to_mean = wrap_pi(np.arctan2(sin[:, others].sum(axis=1), cos[:, others].sum(axis=1)) - l0)
-            d = np.where(mean & (np.abs(to_mean) <= values), to_mean, d)
-        shift = np.clip(d, -lam, lam)
-        sin[:, assisted], cos[:, assisted] = np.sin(l0 + shift), np.cos(l0 + shift)
-        total += np.hypot(sin.sum(axis=1), cos.sum(axis=1)) / n
-        # eq. (5)-(6): λ relaxes toward λ∞(e), fast down (κ⁻), slow up (κ⁺)
-        lam_inf = np.maximum(0.0, 1.0 - np.abs(shift) / blender.e_max) * span + low
-        kappa = np.where(lam <= lam_inf, blender.kappa_up, blender.kappa_down)
-        lam = lam - step * kappa * (lam - lam_inf)
-        # Σ_j a_ij sin(θ̃_j − θ̃_i) = cos θ̃_i (A sin θ̃)_i − sin θ̃_i (A cos θ̃)_i
-        pull = cos * (sin @ adjacency.T) - sin * (cos @ adjacency.T)
-        theta = theta + step * (omega + gain * pull)
+        theta, lam, r = euler_step(
+            theta, lam, model, adjacency, assisted, blender, (kinds, values, anchors), s * step, step
+        )
+        total += r
     return total / steps
+
+
+def euler_step(
+    theta: np.ndarray,
+    lam: np.ndarray,
+    model: tuple[np.ndarray, float],
+    adjacency: np.ndarray,
+    assisted: int,
+    blender: BlenderParams,
+    candidates: tuple[np.ndarray, np.ndarray, np.ndarray],
+    elapsed: float,
+    step: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One Euler step of :func:`predicted_order` for every candidate (one row each).
+
+    ``theta`` (C, N) and ``lam`` (C,) are the state ``elapsed`` seconds after the candidates' start; returns
+    the state ``step`` seconds later and the order parameter of the phases seen now (θ_L2 substituted), (C,).
+    """
+    kinds, values, anchors = candidates
+    omega, gain = model
+    n = theta.shape[1]
+    others = np.arange(n) != assisted
+    pace, mean = kinds == PACE, kinds == MEAN
+    span, low = blender.lambda_max - blender.lambda_min, blender.lambda_min
+    sin, cos = np.sin(theta), np.cos(theta)
+    l0 = theta[:, assisted]
+    d = np.where(pace, wrap_pi(anchors + values * elapsed - l0), 0.0)
+    if mean.any():
+        to_mean = wrap_pi(np.arctan2(sin[:, others].sum(axis=1), cos[:, others].sum(axis=1)) - l0)
+        d = np.where(mean & (np.abs(to_mean) <= values), to_mean, d)
+    shift = np.clip(d, -lam, lam)
+    sin[:, assisted], cos[:, assisted] = np.sin(l0 + shift), np.cos(l0 + shift)
+    r = np.hypot(sin.sum(axis=1), cos.sum(axis=1)) / n
+    # eq. (5)-(6): λ relaxes toward λ∞(e), fast down (κ⁻), slow up (κ⁺)
+    lam_inf = np.maximum(0.0, 1.0 - np.abs(shift) / blender.e_max) * span + low
+    kappa = np.where(lam <= lam_inf, blender.kappa_up, blender.kappa_down)
+    lam = lam - step * kappa * (lam - lam_inf)
+    # Σ_j a_ij sin(θ̃_j − θ̃_i) = cos θ̃_i (A sin θ̃)_i − sin θ̃_i (A cos θ̃)_i
+    pull = cos * (sin @ adjacency.T) - sin * (cos @ adjacency.T)
+    return theta + step * (omega + gain * pull), lam, r
 
 
 class PacingMotion(_MotionPorts):

@@ -735,7 +735,7 @@ register_l2_sync()
 
 
 def register_mpc() -> None:
-    from cogblocks.sync import GroupIdentifier, MPCMotion, PacingMotion
+    from cogblocks.sync import GroupIdentifier, GuardedPacingMotion, MPCMotion, PacingMotion
     from cogblocks.sync.pacing import PACE
 
     # one small problem (a single cached casadi build) whatever hypothesis draws
@@ -760,6 +760,26 @@ def register_mpc() -> None:
                 min_ticks=st.integers(1, 3),
                 min_excitation=st.just(0.0),
                 start=st.sampled_from(["none", "mean"]),
+            )
+        ),
+        lambda b: {"theta": phase((b.n,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
+        ["theta", "lam"],
+        Policy(holds={"theta_ref": lambda b, ins, seen: b.mode != PACE and not _usable(ins)}),
+    )
+    # "a bad tick identifies nothing; θ_ref holds, or keeps integrating the paced frequency"
+    register(
+        GuardedPacingMotion,
+        st.integers(2, 5).flatmap(
+            lambda n: st.builds(
+                GuardedPacingMotion,
+                st.just(n),
+                st.integers(0, n - 1),
+                decide_every=st.integers(1, 5),
+                horizon=st.just(0.2),
+                min_ticks=st.integers(1, 3),
+                min_excitation=st.just(0.0),
+                start=st.sampled_from(["none", "mean"]),
+                fallback=st.sampled_from(["none", "mean"]),
             )
         ),
         lambda b: {"theta": phase((b.n,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},

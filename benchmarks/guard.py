@@ -1,0 +1,69 @@
+"""The guarded pacing motion computer (``guard``) on Table 2's groups: its CPU time per tick and the change of r.
+
+* ``guard.tick_p50`` / ``_p99`` / ``_max``: CPU time (ms) of the block's update on one tick, over every tick
+  of the three runs; reference: the 10 ms tick. A decision is spread over the ticks of its period (a few
+  Euler steps each), so this is the latency a live loop sees, not an amortised figure.
+* ``guard.per_tick_ms``: the mean of the above (amortised cost).
+* ``guard.group<N>.change_pct``: change of the time-averaged r relative to no L2; reference: ``mean``'s.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import numpy as np
+
+from cogblocks.data.groups import TABLE2
+from cogblocks.diagrams.sync import pop_sync
+from cogblocks.sim import Simulator
+from cogblocks.sync import GuardedPacingMotion
+
+BUDGET_MS = 10.0
+
+
+def _r(group, motion, n_steps: int) -> float:
+    return float(
+        Simulator(pop_sync(group, l2=motion is not None, motion=motion or "mean")).run(n_steps=n_steps)["r"].mean()
+    )
+
+
+def _timed(block: GuardedPacingMotion, record: list[float]) -> GuardedPacingMotion:
+    """``block`` with the CPU time of every update appended to ``record`` (ms)."""
+    update = block.update
+
+    def timed(k: int) -> None:
+        start = time.thread_time()
+        update(k)
+        record.append((time.thread_time() - start) * 1e3)
+
+    block.update = timed
+    return block
+
+
+def run(quick: bool = False) -> Iterator[dict]:
+    """Yield per-tick CPU time and r changes; ``quick`` shortens groups 2 and 3 to 30 s."""
+    tick_ms: list[float] = []
+    for number, group in TABLE2.items():
+        duration = min(group.duration, 30.0) if quick else group.duration
+        n_steps = round(duration / 0.01) + 1
+        r0, r_mean = _r(group, None, n_steps), _r(group, "mean", n_steps)
+        block = _timed(GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph), tick_ms)
+        r_guard = _r(group, block, n_steps)
+        pct, mean_pct = 100.0 * (r_guard - r0) / r0, 100.0 * (r_mean - r0) / r0
+        yield {
+            "name": f"guard.group{number}.change_pct",
+            "value": pct,
+            "unit": "%",
+            "reference": mean_pct,
+            "ratio": pct / mean_pct,
+            "duration_s": duration,
+        }
+    for label, ms in (
+        ("tick_p50", np.percentile(tick_ms, 50)),
+        ("tick_p99", np.percentile(tick_ms, 99)),
+        ("tick_max", np.max(tick_ms)),
+        ("per_tick_ms", np.mean(tick_ms)),
+    ):
+        ms = float(ms)
+        yield {"name": f"guard.{label}", "value": ms, "unit": "ms", "reference": BUDGET_MS, "ratio": ms / BUDGET_MS}

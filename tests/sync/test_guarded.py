@@ -1,0 +1,160 @@
+"""The guarded pacing motion computer: its staged prediction, its bounded work per tick and its guard."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.diagrams.sync import MOTIONS, pop_sync
+from cogblocks.sim import Diagram, Simulator
+from cogblocks.sync import GuardedPacingMotion
+from cogblocks.sync.guarded import phase_error
+from cogblocks.sync.model import BlenderParams
+from cogblocks.sync.pacing import MEAN, NONE, PACE, euler_step, predicted_order
+from cogblocks.sync.staged import StagedPrediction
+
+BLENDER = BlenderParams()
+
+
+def _problem():
+    rng = np.random.default_rng(3)
+    n, assisted = 4, 1
+    a = rng.uniform(0.0, 1.5, (n, n)) * (rng.random((n, n)) < 0.8)  # weighted, directed
+    np.fill_diagonal(a, 0.0)
+    return rng.uniform(0, 2 * np.pi, n), 1.2, (rng.uniform(1.0, 4.0, n), 0.7), a, assisted
+
+
+def test_staged_prediction_is_the_lead_then_predicted_order_in_any_chunks():
+    theta, lam, model, a, assisted = _problem()
+    lead = (MEAN, math.pi, 0.0)
+    cands = (np.array([NONE, MEAN, PACE, PACE]), np.array([0.0, 2.0, 2.5, 3.5]), np.array([0.0, 0.0, 1.0, -1.0]))
+    # the lead by hand: 7 Euler steps of 1/7 s under the circular mean
+    th, la = theta[None, :].copy(), np.array([lam])
+    for s in range(7):
+        th, la, _ = euler_step(th, la, model, a, assisted, BLENDER, tuple(np.array([v]) for v in lead), s / 7, 1 / 7)
+    want = predicted_order(th[0], la[0], model, a, assisted, BLENDER, cands, step=0.05, steps=40)
+    seen = []
+    for budget in (1, 3, 47, 1000):
+        job = StagedPrediction(
+            theta,
+            lam,
+            model,
+            a,
+            assisted,
+            BLENDER,
+            lead,
+            lead_time=1.0,
+            lead_steps=7,
+            fan_out=lambda t, la_: (seen.append((t.copy(), la_)), cands)[1],
+            step=0.05,
+            steps=40,
+        )
+        while not job.done:
+            job.advance(budget)
+            assert job.evaluations <= budget * 4
+        np.testing.assert_allclose(job.lead_theta, th[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(job.scores, want, rtol=0, atol=1e-12)
+    assert seen[0][1] == pytest.approx(la[0], abs=1e-12)  # the fan-out is given the lead's λ
+    assert np.ptp(want) > 1e-3
+
+
+def test_phase_error_ignores_a_common_offset():
+    rng = np.random.default_rng(0)
+    theta = rng.uniform(0, 2 * np.pi, 6)
+    assert phase_error(theta + 2.0, theta) == pytest.approx(0.0, abs=1e-12)
+    off = np.array([0.1, -0.1, 0.1, -0.1, 0.1, -0.1])
+    assert phase_error(theta + 1.0 + off, theta) == pytest.approx(0.1, abs=1e-12)
+
+
+def _closed_loop(group: SyncGroup, block: GuardedPacingMotion, seconds: float, record: list) -> dict:
+    """Run ``block`` on ``group`` and record, after every update, the candidate-steps it did on that tick."""
+    update = block.update
+
+    def counted(k: int) -> None:
+        update(k)
+        job = block.job
+        record.append(0 if job is None else job.evaluations)
+        if job is not None:
+            job.evaluations = 0  # a tick that does not advance it did no work
+
+    block.update = counted
+    probes = {"ref": "l2.theta_ref", "l0": "l2.theta_l0"}
+    return Simulator(pop_sync(group, motion=block), probes=probes).run(n_steps=round(seconds / 0.01) + 1)
+
+
+def test_work_per_tick_is_bounded_and_a_decision_applies_one_period_after_it_starts():
+    group = TABLE2[1]
+    block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, decide_every=50, horizon=5.0)
+    record: list[int] = []
+    _closed_loop(group, block, 4.0, record)
+    # 5 s of 50 ms steps and a 0.5 s lead of 10 steps, over 50 ticks: 3 Euler steps a tick, ≤ 38 candidates
+    assert 3 * (1 + 3 + 2 * 16) <= max(record) <= 3 * (1 + 3 + 2 * 17)  # 38 candidates while pacing
+    assert max(record) <= block.max_evaluations
+    assert sum(r > 0 for r in record) >= 4 * 50  # the work is spread over the periods' ticks
+    # the model is trusted after 100 increments (tick 100); decisions start at 100, 150, … and apply 50 ticks later
+    assert len(block.errors) == len(block.choices) == (400 - 150) // 50 + 1
+    assert max(block.errors) < block.tolerance  # a noiseless group of the identified kind: the model predicts well
+
+
+def _run_inputs(block: GuardedPacingMotion, theta: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    d = Diagram()
+    m = d.add("m", block)
+    d.expose_input("theta", m.theta)
+    d.expose_input("lam", m.lam)
+    trace = Simulator(d, probes={"ref": "m.theta_ref"}).run(n_steps=len(theta), inputs={"theta": theta, "lam": lam})
+    return trace["ref"]
+
+
+def test_the_guard_falls_back_when_the_model_predicts_badly():
+    """Phases that are no Kuramoto group (each frequency jumps every 0.3 s): every check fails, the block follows
+    its fallback (the circular mean) from the first check on; the same block on smooth phases trusts its model."""
+    rng = np.random.default_rng(5)
+    n, ticks = 4, 600
+    rates = np.repeat(rng.uniform(-6.0, 6.0, (ticks // 30 + 1, n)), 30, axis=0)[:ticks]
+    theta = np.mod(np.cumsum(rates * 0.01, axis=0), 2 * np.pi)
+    lam = np.full(ticks, 1.0)
+    block = GuardedPacingMotion(n, 0, decide_every=50, horizon=2.0, fallback="mean", margin=0.0, min_excitation=0.0)
+    ref = _run_inputs(block, theta, lam)
+    assert len(block.errors) >= 8 and min(block.errors) > block.tolerance
+    assert set(block.choices) == {-1}
+    first = 100 + 50 + 1  # trusted at tick 100, checked at 150, applied from 151
+    means = np.mod(np.arctan2(np.sin(theta[:, 1:]).sum(1), np.cos(theta[:, 1:]).sum(1)), 2 * np.pi)
+    np.testing.assert_allclose(ref[first:], means[first:], atol=1e-12)
+    np.testing.assert_array_equal(ref[:first], theta[:first, 0])  # before: start="none", θ_ref = θ_L0
+    # constant frequencies (an uncoupled group, which the model fits but for its prior's ~1e-5): every check passes
+    smooth = np.mod(np.arange(ticks)[:, None] * 0.01 * np.array([2.0, 3.0, 3.5, 4.0]) + np.arange(n), 2 * np.pi)
+    calm = GuardedPacingMotion(n, 0, decide_every=50, horizon=2.0, fallback="mean", min_excitation=0.0)
+    _run_inputs(calm, smooth, lam)
+    assert max(calm.errors) < 1e-4 and -1 not in calm.choices
+
+
+def test_bad_data_policy():
+    """A bad tick identifies nothing; θ_ref holds (or keeps pacing); a decision in progress still advances."""
+    n, ticks = 3, 160
+    t = np.arange(ticks)[:, None] * 0.01
+    theta = np.mod(np.array([2.0, 3.0, 4.0]) * t + np.array([0.0, 1.0, 2.5]), 2 * np.pi)
+    lam = np.full(ticks, 1.0)
+    theta[20, 1] = np.nan
+    theta[70, 0] = 1e300
+    lam[90] = np.inf
+    block = GuardedPacingMotion(n, 0, start="mean", min_ticks=10, min_excitation=0.0, decide_every=50, horizon=1.0)
+    ref = _run_inputs(block, theta, lam)
+    assert np.isfinite(ref).all()
+    assert ref[20] == ref[19] and ref[70] == ref[69]
+    # 159 increments less those ending at or starting from a bad phase (19→20, 20→21, 69→70, 70→71) or λ (90, 91)
+    assert block.count == 159 - 6
+    assert len(block.errors) == 2  # decisions started at 50 and 100 (the one due at 150 has no finished job yet)
+
+
+def test_guard_is_a_policy_of_the_held_out_runner_and_checks_its_parameters():
+    group = SyncGroup("all", 4, 0.5, (2.0, 2.5, 3.0, 3.5), 1, 2.0, graph="all")
+    block = MOTIONS["guard"](group)
+    assert isinstance(block, GuardedPacingMotion)
+    np.testing.assert_array_equal(block.adjacency, group.adjacency())
+    with pytest.raises(ValueError, match="fallback must be one of"):
+        GuardedPacingMotion(3, 0, fallback="pace")
+    with pytest.raises(ValueError, match="tolerance must be"):
+        GuardedPacingMotion(3, 0, tolerance=-1.0)
