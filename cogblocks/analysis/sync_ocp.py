@@ -157,8 +157,9 @@ def _rules(
 
 def start_references(
     group: SyncGroup, adjacency: np.ndarray, n_steps: int, params: BlenderParams
-) -> tuple[np.ndarray, dict[str, float]]:
-    """The best start's alteration fractions ``s`` (one per tick) and the best mean r of each kind of start.
+) -> tuple[np.ndarray, dict[str, float], np.ndarray | None]:
+    """The best start's alteration fractions ``s`` (one per tick), the best mean r of each kind of start, and the
+    best start's θ_ref if it is a constant frequency (else ``None``).
 
     Kinds: ``"none"`` (θ_ref = θ_L0), ``"mean"`` (the circular mean of the others), ``"constant"`` (the best
     constant frequency of the grid in the module docstring), all over the whole run.
@@ -168,7 +169,8 @@ def start_references(
         v.ravel() for v in np.meshgrid(np.linspace(omega.min() - 0.5, omega.max() + 0.5, 41), np.arange(4) * np.pi / 2)
     )
     # on the 0.05 rad/s lattice of constant_frequency_bound, where it is near the natural frequencies
-    dense = 0.05 * np.arange(np.floor((omega.min() - 1.0) / 0.05), np.ceil((omega.max() + 1.0) / 0.05) + 1)
+    lattice = np.arange(-15.0, 15.0 + 1e-9, 0.05)  # the very values of constant_frequency_bound's grid
+    dense = lattice[(lattice >= omega.min() - 1.0) & (lattice <= omega.max() + 1.0)]
     kind = np.r_[0, 1, np.full(len(scan_freq) + len(dense), 2)]
     rules = (kind, np.r_[0.0, 0.0, scan_phase, np.zeros(len(dense))], np.r_[0.0, 0.0, scan_freq, dense])
     state = np.r_[np.zeros(group.n), params.lambda_max]
@@ -176,7 +178,9 @@ def start_references(
     best = {name: float(sums[kind == k].max() / n_steps) for k, name in enumerate(("none", "mean", "constant"))}
     top = int(np.argmax(sums))
     _, s = _rules(group, adjacency, params, state, tuple(v[top : top + 1] for v in rules), n_steps, record=True)
-    return s[:, 0], best
+    # the same expression as constant_frequency_bound's reference, so that re-simulations agree to the bit
+    theta_ref = rules[1][top] + rules[2][top] * DT * np.arange(n_steps) if kind[top] == 2 else None
+    return s[:, 0], best, theta_ref
 
 
 def _switches(
@@ -200,8 +204,10 @@ def _switches(
     return _rules(group, adjacency, params, state, (kind, phase0, np.r_[0.0, 0.0, grid, grid]), n_ticks, True)
 
 
-def _pace_fractions(group: SyncGroup, adjacency: np.ndarray, params: BlenderParams, n_steps: int) -> np.ndarray:
-    """The alteration fractions of :class:`~cogblocks.sync.PacingMotion` (identified model) in closed loop."""
+def _pace_start(
+    group: SyncGroup, adjacency: np.ndarray, params: BlenderParams, n_steps: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The alteration fractions and θ_ref of :class:`~cogblocks.sync.PacingMotion` (identified model) in closed loop."""
     d = Diagram()
     kuramoto = d.add("group", KuramotoGroup(group.omega, group.gain, adjacency=adjacency, assisted=group.assisted))
     motion = PacingMotion(group.n, group.assisted, adjacency=adjacency, blender=params)
@@ -209,9 +215,9 @@ def _pace_fractions(group: SyncGroup, adjacency: np.ndarray, params: BlenderPara
     l2 = d.add("l2", L2Sync(motion, group.assisted, blend))
     d.connect(kuramoto.theta, l2.theta)
     d.connect(l2.theta_l2, kuramoto.theta_l2)
-    trace = Simulator(d, probes=["l2.theta_l2", "l2.theta_l0", "l2.lam"]).run(n_steps=n_steps)
+    trace = Simulator(d, probes=["l2.theta_l2", "l2.theta_l0", "l2.lam", "l2.theta_ref"]).run(n_steps=n_steps)
     alteration = np.mod(trace["l2.theta_l2"] - trace["l2.theta_l0"] + np.pi, 2 * np.pi) - np.pi
-    return np.clip(alteration / trace["l2.lam"], -1.0, 1.0)
+    return np.clip(alteration / trace["l2.lam"], -1.0, 1.0), trace["l2.theta_ref"]
 
 
 def _window_solver(tick: ca.Function, n: int, window: int, tail: int, knot: int, max_iter: int) -> tuple:
@@ -293,15 +299,15 @@ def windowed_control_bound(
     n = group.n
     tick = _tick(group, a, params)
     roll = tick.mapaccum("roll", _CHUNK)
-    s, starts = start_references(group, a, n_steps, params)
+    s, starts, start_ref = start_references(group, a, n_steps, params)
     x_init = np.r_[np.zeros(n), params.lambda_max]
     states, r = alteration_rollout(roll, x_init, s)
     if pace:
-        s_pace = _pace_fractions(group, a, params, n_steps)
+        s_pace, pace_ref = _pace_start(group, a, params, n_steps)
         states_pace, r_pace = alteration_rollout(roll, x_init, s_pace)
         starts["pace"] = float(r_pace.mean())
         if r_pace.sum() > r.sum():
-            s, states, r = s_pace, states_pace, r_pace
+            s, states, r, start_ref = s_pace, states_pace, r_pace, pace_ref
     solver, hats = _window_solver(tick, n, window_ticks, tail_ticks, knot_ticks, max_iter)
     length = window_ticks + tail_ticks
     accepted = windows = 0
@@ -338,6 +344,10 @@ def windowed_control_bound(
                 accepted += 1
     theta_ref = states[:, group.assisted] + states[:, n] * s
     value = resimulate(group, theta_ref, adjacency=a, blender=params)
+    if start_ref is not None:  # the start itself, in case the corrections gained less than the rounding
+        start_value = resimulate(group, start_ref, adjacency=a, blender=params)
+        if start_value > value:
+            value, theta_ref = start_value, start_ref
     if not details:
         return value
     return {
