@@ -77,15 +77,17 @@ def upper_bound(
     duration: float | None = None,
     blender: BlenderParams | None = None,
     max_iter: int = 20,
+    pace: bool = True,
 ) -> float:
     """The best r found: the larger of :func:`~cogblocks.analysis.sync_ocp.windowed_control_bound` (whole-run
-    optimal control of the alteration, IPOPT with ``max_iter`` iterations per window) and, on the group's own
-    graph, :func:`constant_frequency_scan`.
+    optimal control of the alteration, IPOPT with ``max_iter`` iterations per window, started from the
+    ``pace`` policy's reference too if ``pace``) and, on the group's own graph, :func:`constant_frequency_scan`.
 
     Each is an r that some reference reaches, so the larger is the tighter; neither is a proof that no
     reference does better.
     """
-    best = windowed_control_bound(group, adjacency=adjacency, duration=duration, blender=blender, max_iter=max_iter)
+    kw = {"adjacency": adjacency, "duration": duration, "blender": blender}
+    best = windowed_control_bound(group, max_iter=max_iter, pace=pace, **kw)
     if adjacency is None:  # the scan simulates the group's own graph
         scanned = group if duration is None else dataclasses.replace(group, duration=float(duration))
         best = max(best, constant_frequency_scan(scanned, blender))
