@@ -43,7 +43,7 @@ from cogblocks.sync.model import DT, BlenderParams
 from cogblocks.sync.order import OrderParameter
 from cogblocks.sync.pacing import PacingMotion
 
-__all__ = ["alteration_rollout", "resimulate", "start_references", "windowed_control_bound"]
+__all__ = ["alteration_model", "alteration_rollout", "resimulate", "start_references", "windowed_control_bound"]
 
 _CHUNK = 1000  # ticks per casadi rollout call
 
@@ -54,10 +54,9 @@ def resimulate(
     """Time-averaged r of the group with L2 driven by the reference ``theta_ref`` (one sample per 10 ms tick).
 
     Runs the library's blocks (group, the blender with its hard saturation, the order parameter of the
-    phases with θ_L2 substituted), so the value does not depend on the optimiser's smooth model.
+    phases with θ_L2 substituted), so the value does not depend on any optimiser's model.
     """
-    a = group.adjacency() if adjacency is None else np.asarray(adjacency, dtype=float)
-    params = blender or BlenderParams()
+    a, params = _checked(group, adjacency, blender)
     d = Diagram()
     kuramoto = d.add("group", KuramotoGroup(group.omega, group.gain, adjacency=a, assisted=group.assisted))
     reference = d.add("reference", Playback(np.mod(theta_ref, 2 * np.pi), unit="rad", wrapped=True))
@@ -76,6 +75,19 @@ def resimulate(
     d.connect(seen.y, order.theta)
     d.connect(order.r, "r.u")
     return float(Simulator(d).run(n_steps=len(theta_ref))["r"].mean())
+
+
+def _checked(group: SyncGroup, adjacency: Any, blender: BlenderParams | None) -> tuple[np.ndarray, BlenderParams]:
+    a = group.adjacency() if adjacency is None else np.asarray(adjacency, dtype=float)
+    if a.shape != (group.n, group.n):
+        raise ValueError(f"adjacency must be {group.n}x{group.n}, got shape {a.shape}")
+    return a, blender or BlenderParams()
+
+
+def alteration_model(group: SyncGroup, adjacency: Any = None, blender: BlenderParams | None = None) -> ca.Function:
+    """The exact discrete model mapped over :data:`_CHUNK` ticks, for :func:`alteration_rollout`."""
+    a, params = _checked(group, adjacency, blender)
+    return _tick(group, a, params).mapaccum("roll", _CHUNK)
 
 
 def _tick(group: SyncGroup, adjacency: np.ndarray, params: BlenderParams) -> ca.Function:
@@ -100,7 +112,7 @@ def _tick(group: SyncGroup, adjacency: np.ndarray, params: BlenderParams) -> ca.
 def alteration_rollout(roll: ca.Function, x0: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """States before each tick (``len(s)`` × (N + 1)) and r of each tick, for the alteration fractions ``s``.
 
-    ``roll`` is the tick mapped over :data:`_CHUNK` ticks (``tick.mapaccum``); the last chunk is padded.
+    ``roll`` is :func:`alteration_model`'s function; ``x0 = (θ, λ)``; the last chunk is padded.
     """
     states, rs = [], []
     x = ca.DM(x0)
@@ -288,10 +300,7 @@ def windowed_control_bound(
         Return a dict instead of the value: ``"r"`` (re-simulated), ``"r_model"`` (the optimiser's exact model),
         ``"starts"`` (best mean r per kind of start), ``"accepted"`` / ``"windows"`` and ``"theta_ref"``.
     """
-    a = group.adjacency() if adjacency is None else np.asarray(adjacency, dtype=float)
-    if a.shape != (group.n, group.n):
-        raise ValueError(f"adjacency must be {group.n}x{group.n}, got shape {a.shape}")
-    params = blender or BlenderParams()
+    a, params = _checked(group, adjacency, blender)
     n_steps = round((group.duration if duration is None else float(duration)) / DT) + 1
     window_ticks, tail_ticks, knot_ticks, screen_ticks = (round(v / DT) for v in (window, tail, knot, screen))
     if min(window_ticks, knot_ticks) < 1 or tail_ticks < 0 or window_ticks % knot_ticks:

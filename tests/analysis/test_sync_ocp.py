@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from cogblocks.analysis.sync_ocp import _CHUNK, _tick, alteration_rollout, resimulate, windowed_control_bound
+from cogblocks.analysis.sync_ocp import alteration_model, alteration_rollout, resimulate, windowed_control_bound
 from cogblocks.data.groups import SyncGroup
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.sim import Simulator
@@ -19,9 +19,7 @@ TICKS = round(GROUP.duration / DT) + 1
 
 
 def _roll(group: SyncGroup, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    params = BlenderParams()
-    roll = _tick(group, group.adjacency(), params).mapaccum("roll", _CHUNK)
-    return alteration_rollout(roll, np.r_[np.zeros(group.n), params.lambda_max], s)
+    return alteration_rollout(alteration_model(group), np.r_[np.zeros(group.n), BlenderParams().lambda_max], s)
 
 
 def test_doing_nothing_is_the_run_without_l2():
@@ -73,3 +71,5 @@ def test_bad_arguments():
         windowed_control_bound(GROUP, window=0.5, knot=0.3)
     with pytest.raises(ValueError, match="adjacency must be 3x3"):
         windowed_control_bound(GROUP, adjacency=np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="adjacency must be 3x3"):
+        resimulate(GROUP, np.zeros(5), adjacency=np.zeros((4, 4)))
