@@ -1,4 +1,4 @@
-"""The yardstick of the motion computers: the best r found by optimal control or a constant reference."""
+"""The yardstick of the motion computers: the best r found by whole-run optimal control or a constant reference."""
 
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def test_bound_is_below_one_and_above_every_constant_reference(bounded):
     assert constant_frequency_bound(group, duration=DURATION) <= bound <= 1.0
 
 
-@pytest.mark.parametrize("motion", ["mean", "lookahead", "mpc"])
+@pytest.mark.parametrize("motion", ["mean", "lookahead", "mpc", "pace"])
 def test_bound_is_above_the_policies(bounded, motion):
     group, bound = bounded
     r = float(Simulator(pop_sync(group, motion=motion)).run(n_steps=round(DURATION / DT) + 1)["r"].mean())

@@ -1,0 +1,369 @@
+"""Whole-run optimal control of the L2 alteration: the per-group bound of the held-out evaluation.
+
+Within the blender's limits, the reference can only choose the alteration ``a_k = θ_L2 − θ_L0`` of each tick
+in ``[−λ_k, λ_k]`` (the clip makes any θ_ref beyond the limit equivalent to ``±λ_k``), and λ_k follows from the
+alterations already made. So the open-loop references θ_ref are exactly the sequences ``s_k = a_k / λ_k`` in
+``[−1, 1]``, with ``θ_ref,k = θ_L0,k + λ_k s_k``: every closed-loop policy is one of them, doing nothing is
+``s ≡ 0``, and the box is the whole feasible set. :func:`windowed_control_bound` maximises the run's mean r
+over ``s`` on the *exact* discrete model of the simulation (the blocks' 10 ms Euler step of the group, the
+blender's hard clip, ψ and κ switch, the order parameter of the phases with θ_L2 substituted; only the
+phases are left unwrapped), in three stages:
+
+1. starts, whole run, all simulated at once: doing nothing, the circular mean of the others (the ``mean``
+   policy), and constant reference frequencies θ_ref0 + ω_c t (the grid of
+   :func:`~cogblocks.analysis.sync_bound.constant_frequency_scan`, plus ω_c every 0.05 rad/s from
+   min ω − 1 to max ω + 1 at θ_ref0 = 0); the best is the incumbent, at tick resolution;
+2. block-coordinate ascent on the whole run: for consecutive windows of ``window`` s, the incumbent's ``s``
+   is corrected by piecewise-linear δ on ``knot`` s knots (kept in the box by linear constraints), IPOPT
+   maximising r over the window and a ``tail`` after it (where the incumbent continues) from the state the
+   incumbent reaches at the window's start; the correction is kept only if the mean r of the *whole run*
+   (every tick to the end, re-rolled exactly) rises. Every accepted step raises the whole-run objective;
+3. the final ``s`` is turned into θ_ref and re-simulated through the real blocks
+   (:func:`resimulate`): that value is returned.
+
+It is a local optimum of the whole-run problem (for moves of one window at a time), started from the best
+of the starts, so it is at least r without L2, ``mean``'s r and the best constant frequency's (up to the
+rounding of the re-simulation); not a proof that no reference does better.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from cogblocks.blocks import Playback, Probe, Select, Substitute
+from cogblocks.data.groups import SyncGroup
+from cogblocks.sim import Diagram, Simulator
+from cogblocks.sync.blender import Blender
+from cogblocks.sync.group import KuramotoGroup
+from cogblocks.sync.l2 import L2Sync
+from cogblocks.sync.model import DT, BlenderParams
+from cogblocks.sync.order import OrderParameter
+from cogblocks.sync.pacing import PacingMotion
+
+__all__ = ["alteration_model", "alteration_rollout", "resimulate", "start_references", "windowed_control_bound"]
+
+_CHUNK = 1000  # ticks per casadi rollout call
+
+
+def resimulate(
+    group: SyncGroup, theta_ref: np.ndarray, *, adjacency: Any = None, blender: BlenderParams | None = None
+) -> float:
+    """Time-averaged r of the group with L2 driven by the reference ``theta_ref`` (one sample per 10 ms tick).
+
+    Runs the library's blocks (group, the blender with its hard saturation, the order parameter of the
+    phases with θ_L2 substituted), so the value does not depend on any optimiser's model.
+    """
+    a, params = _checked(group, adjacency, blender)
+    d = Diagram()
+    kuramoto = d.add("group", KuramotoGroup(group.omega, group.gain, adjacency=a, assisted=group.assisted))
+    reference = d.add("reference", Playback(np.mod(theta_ref, 2 * np.pi), unit="rad", wrapped=True))
+    select = d.add("select_l0", Select(group.assisted))
+    blend = d.add(
+        "blender",
+        Blender(params.lambda_min, params.lambda_max, params.e_max, params.kappa_up, params.kappa_down),
+    )
+    seen = d.add("seen", Substitute(group.assisted))
+    order = d.add("order", OrderParameter())
+    d.add("r", Probe())
+    d.connect(kuramoto.theta, select.u, seen.u)
+    d.connect(select.y, blend.theta_l0)
+    d.connect(reference.y, blend.theta_ref)
+    d.connect(blend.theta_l2, kuramoto.theta_l2, seen.v)
+    d.connect(seen.y, order.theta)
+    d.connect(order.r, "r.u")
+    return float(Simulator(d).run(n_steps=len(theta_ref))["r"].mean())
+
+
+def _checked(group: SyncGroup, adjacency: Any, blender: BlenderParams | None) -> tuple[np.ndarray, BlenderParams]:
+    a = group.adjacency() if adjacency is None else np.asarray(adjacency, dtype=float)
+    if a.shape != (group.n, group.n):
+        raise ValueError(f"adjacency must be {group.n}x{group.n}, got shape {a.shape}")
+    return a, blender or BlenderParams()
+
+
+def alteration_model(group: SyncGroup, adjacency: Any = None, blender: BlenderParams | None = None) -> ca.Function:
+    """The exact discrete model mapped over :data:`_CHUNK` ticks, for :func:`alteration_rollout`."""
+    a, params = _checked(group, adjacency, blender)
+    return _tick(group, a, params).mapaccum("roll", _CHUNK)
+
+
+def _tick(group: SyncGroup, adjacency: np.ndarray, params: BlenderParams) -> ca.Function:
+    """One tick of the exact discrete model: ``(x, s) -> (x_next, r)``, ``x = (θ_1 … θ_N, λ)``."""
+    n, i = group.n, group.assisted
+    x, s = ca.SX.sym("x", n + 1), ca.SX.sym("s")
+    theta, lam = x[:n], x[n]
+    alteration = lam * s
+    seen = ca.vertcat(theta[:i], theta[i] + alteration, theta[i + 1 :])
+    sin_s, cos_s = ca.sin(seen), ca.cos(seen)
+    r = ca.sqrt(ca.sum1(cos_s) ** 2 + ca.sum1(sin_s) ** 2) / n
+    a = ca.sparsify(ca.DM(adjacency))
+    pull = cos_s * ca.mtimes(a, sin_s) - sin_s * ca.mtimes(a, cos_s)
+    span = params.lambda_max - params.lambda_min
+    lam_inf = params.lambda_min + span * ca.fmax(0.0, 1.0 - ca.fabs(alteration) / params.e_max)
+    kappa = ca.if_else(lam <= lam_inf, params.kappa_up, params.kappa_down)
+    omega = ca.DM(np.asarray(group.omega, dtype=float))
+    x_next = ca.vertcat(theta + DT * (omega + group.gain * pull), lam - DT * kappa * (lam - lam_inf))
+    return ca.Function("tick", [x, s], [x_next, r])
+
+
+def alteration_rollout(roll: ca.Function, x0: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """States before each tick (``len(s)`` × (N + 1)) and r of each tick, for the alteration fractions ``s``.
+
+    ``roll`` is :func:`alteration_model`'s function; ``x0 = (θ, λ)``; the last chunk is padded.
+    """
+    states, rs = [], []
+    x = ca.DM(x0)
+    for start in range(0, len(s), _CHUNK):
+        part = s[start : start + _CHUNK]
+        xs, r = roll(x, np.pad(part, (0, _CHUNK - len(part)))[None, :])
+        xs, r = np.asarray(xs), np.asarray(r).ravel()
+        before = np.column_stack([np.asarray(x), xs[:, :-1]])  # the state each tick starts from
+        states.append(before[:, : len(part)].T)
+        rs.append(r[: len(part)])
+        x = ca.DM(before[:, len(part)]) if len(part) < _CHUNK else ca.DM(xs[:, -1])
+    return np.concatenate(states), np.concatenate(rs)
+
+
+def _rules(
+    group: SyncGroup,
+    adjacency: np.ndarray,
+    params: BlenderParams,
+    state: np.ndarray,
+    rules: tuple[np.ndarray, np.ndarray, np.ndarray],
+    n_ticks: int,
+    record: bool,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Reference rules in closed loop from ``state`` (θ, λ), all at once on the exact NumPy model.
+
+    ``rules = (kind, phase0, freq)``: kind 0 does nothing (θ_ref = θ_L0), 1 follows the circular mean of the
+    others, 2 is the constant frequency θ_ref = phase0 + freq · t (t from ``state``). Returns the r of every tick
+    and rule (``n_ticks`` × rules) if ``record``, else only their sums, and the alteration fractions if ``record``.
+    """
+    kind, phase0, freq = rules
+    b, i, n = len(kind), group.assisted, group.n
+    others = np.arange(n) != i
+    omega = np.asarray(group.omega, dtype=float)
+    theta, lam = np.tile(state[:n], (b, 1)), np.full(b, state[n])
+    total = np.zeros((n_ticks, b) if record else b)
+    s = np.zeros((n_ticks, b)) if record else None
+    slope = (params.lambda_max - params.lambda_min) / params.e_max
+    for k in range(n_ticks):
+        z = np.exp(1j * theta)
+        reference = np.where(kind == 1, np.angle(z[:, others].sum(axis=1)), phase0 + freq * (k * DT))
+        l0 = theta[:, i]
+        alteration = np.where(kind == 0, 0.0, np.clip(np.mod(reference - l0 + np.pi, 2 * np.pi) - np.pi, -lam, lam))
+        z[:, i] = np.exp(1j * (l0 + alteration))
+        r = np.abs(z.sum(axis=1)) / n
+        if record:
+            total[k], s[k] = r, alteration / lam
+        else:
+            total += r
+        lam_inf = np.maximum(params.lambda_min, params.lambda_max - slope * np.abs(alteration))
+        lam = lam - DT * np.where(lam <= lam_inf, params.kappa_up, params.kappa_down) * (lam - lam_inf)
+        theta = theta + DT * (omega + group.gain * (z.conj() * (z @ adjacency.T)).imag)
+    return total, (np.clip(s, -1.0, 1.0) if record else None)
+
+
+def start_references(
+    group: SyncGroup, adjacency: np.ndarray, n_steps: int, params: BlenderParams
+) -> tuple[np.ndarray, dict[str, float], np.ndarray | None]:
+    """The best start's alteration fractions ``s`` (one per tick), the best mean r of each kind of start, and the
+    best start's θ_ref if it is a constant frequency (else ``None``).
+
+    Kinds: ``"none"`` (θ_ref = θ_L0), ``"mean"`` (the circular mean of the others), ``"constant"`` (the best
+    constant frequency of the grid in the module docstring), all over the whole run.
+    """
+    omega = np.asarray(group.omega, dtype=float)
+    scan_freq, scan_phase = (
+        v.ravel() for v in np.meshgrid(np.linspace(omega.min() - 0.5, omega.max() + 0.5, 41), np.arange(4) * np.pi / 2)
+    )
+    # on the 0.05 rad/s lattice of constant_frequency_bound, where it is near the natural frequencies
+    lattice = np.arange(-15.0, 15.0 + 1e-9, 0.05)  # the very values of constant_frequency_bound's grid
+    dense = lattice[(lattice >= omega.min() - 1.0) & (lattice <= omega.max() + 1.0)]
+    kind = np.r_[0, 1, np.full(len(scan_freq) + len(dense), 2)]
+    rules = (kind, np.r_[0.0, 0.0, scan_phase, np.zeros(len(dense))], np.r_[0.0, 0.0, scan_freq, dense])
+    state = np.r_[np.zeros(group.n), params.lambda_max]
+    sums, _ = _rules(group, adjacency, params, state, rules, n_steps, record=False)
+    best = {name: float(sums[kind == k].max() / n_steps) for k, name in enumerate(("none", "mean", "constant"))}
+    top = int(np.argmax(sums))
+    _, s = _rules(group, adjacency, params, state, tuple(v[top : top + 1] for v in rules), n_steps, record=True)
+    # the same expression as constant_frequency_bound's reference, so that re-simulations agree to the bit
+    theta_ref = rules[1][top] + rules[2][top] * DT * np.arange(n_steps) if kind[top] == 2 else None
+    return s[:, 0], best, theta_ref
+
+
+def _switches(
+    group: SyncGroup,
+    adjacency: np.ndarray,
+    params: BlenderParams,
+    state: np.ndarray,
+    s_now: float,
+    n_ticks: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rules to switch to at a window's start: nothing, the mean, 16 constant frequencies from the reference
+    now or from the others' mean. Their r per tick and alteration fractions over ``n_ticks``."""
+    n, i = group.n, group.assisted
+    omega = np.asarray(group.omega, dtype=float)
+    grid = np.linspace(omega.min() - 0.5, omega.max() + 0.5, 16)
+    theta = state[:n]
+    reference_now = theta[i] + state[n] * s_now
+    mean_now = np.angle(np.exp(1j * np.delete(theta, i)).sum())
+    kind = np.r_[0, 1, np.full(2 * len(grid), 2)]
+    phase0 = np.r_[0.0, 0.0, np.full(len(grid), reference_now), np.full(len(grid), mean_now)]
+    return _rules(group, adjacency, params, state, (kind, phase0, np.r_[0.0, 0.0, grid, grid]), n_ticks, True)
+
+
+def _pace_start(
+    group: SyncGroup, adjacency: np.ndarray, params: BlenderParams, n_steps: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The alteration fractions and θ_ref of :class:`~cogblocks.sync.PacingMotion` (identified model) in closed loop."""
+    d = Diagram()
+    kuramoto = d.add("group", KuramotoGroup(group.omega, group.gain, adjacency=adjacency, assisted=group.assisted))
+    motion = PacingMotion(group.n, group.assisted, adjacency=adjacency, blender=params)
+    blend = Blender(params.lambda_min, params.lambda_max, params.e_max, params.kappa_up, params.kappa_down)
+    l2 = d.add("l2", L2Sync(motion, group.assisted, blend))
+    d.connect(kuramoto.theta, l2.theta)
+    d.connect(l2.theta_l2, kuramoto.theta_l2)
+    trace = Simulator(d, probes=["l2.theta_l2", "l2.theta_l0", "l2.lam", "l2.theta_ref"]).run(n_steps=n_steps)
+    alteration = np.mod(trace["l2.theta_l2"] - trace["l2.theta_l0"] + np.pi, 2 * np.pi) - np.pi
+    return np.clip(alteration / trace["l2.lam"], -1.0, 1.0), trace["l2.theta_ref"]
+
+
+def _window_solver(tick: ca.Function, n: int, window: int, tail: int, knot: int, max_iter: int) -> tuple:
+    """IPOPT over the piecewise-linear correction δ of one window; its hat matrix (window ticks × knots)."""
+    length = window + tail
+    knots = window // knot
+    ticks = np.arange(window)
+    hats = np.maximum(0.0, 1.0 - np.abs(ticks[:, None] / knot - np.arange(knots)[None, :]))
+    delta = ca.MX.sym("delta", knots)
+    x0, base, weight = ca.MX.sym("x0", n + 1), ca.MX.sym("base", length), ca.MX.sym("weight", length)
+    s = base + ca.vertcat(ca.mtimes(ca.DM(hats), delta), ca.DM.zeros(tail))
+    _, r = tick.mapaccum("window", length)(x0, s.T)
+    nlp = {
+        "x": delta,
+        "p": ca.vertcat(x0, base, weight),
+        "f": -ca.dot(weight, r.T) / window,
+        "g": ca.mtimes(ca.sparsify(ca.DM(hats)), delta),
+    }
+    options = {
+        "print_time": False,
+        "ipopt.print_level": 0,
+        "ipopt.sb": "yes",
+        "ipopt.max_iter": max_iter,
+        "ipopt.hessian_approximation": "limited-memory",
+        "ipopt.tol": 1e-6,
+    }
+    return ca.nlpsol("window_bound", "ipopt", nlp, options), hats
+
+
+def windowed_control_bound(
+    group: SyncGroup,
+    *,
+    adjacency: Any = None,
+    duration: float | None = None,
+    blender: BlenderParams | None = None,
+    window: float = 4.0,
+    tail: float = 4.0,
+    screen: float = 10.0,
+    knot: float = 0.25,
+    max_iter: int = 20,
+    pace: bool = True,
+    details: bool = False,
+) -> Any:
+    """The best whole-run mean r found over the blender's feasible alterations, re-simulated through the blocks.
+
+    See the module docstring for the method.
+
+    Parameters
+    ----------
+    group : SyncGroup
+        The group (all phases start at 0, λ at λ_max); its graph unless ``adjacency`` is given.
+    adjacency : array_like, optional
+        Another graph, N × N.
+    duration : float, optional
+        Seconds to optimise and average over (ticks 0 … T/dt); the group's by default.
+    blender : BlenderParams, optional
+        The deliverable's by default.
+    window, tail, knot, screen : float
+        Seconds: the block optimised at a time, the time after it also scored, the spacing of the
+        correction's knots (``knot`` divides ``window``; all multiples of 10 ms), and the longest time a
+        rule switched to at a window's start is held (and screened over) before the incumbent resumes.
+    max_iter : int
+        IPOPT iterations per window.
+    pace : bool
+        Also start from the reference that the ``pace`` policy (:class:`~cogblocks.sync.PacingMotion`, identified
+        model) makes in closed loop: a switching reference that the windows alone do not find on slow groups.
+    details : bool
+        Return a dict instead of the value: ``"r"`` (re-simulated), ``"r_model"`` (the optimiser's exact model),
+        ``"starts"`` (best mean r per kind of start), ``"accepted"`` / ``"windows"`` and ``"theta_ref"``.
+    """
+    a, params = _checked(group, adjacency, blender)
+    n_steps = round((group.duration if duration is None else float(duration)) / DT) + 1
+    window_ticks, tail_ticks, knot_ticks, screen_ticks = (round(v / DT) for v in (window, tail, knot, screen))
+    if min(window_ticks, knot_ticks) < 1 or tail_ticks < 0 or window_ticks % knot_ticks:
+        raise ValueError(f"knot ({knot} s) must divide window ({window} s); tail must be >= 0")
+    n = group.n
+    tick = _tick(group, a, params)
+    roll = tick.mapaccum("roll", _CHUNK)
+    s, starts, start_ref = start_references(group, a, n_steps, params)
+    x_init = np.r_[np.zeros(n), params.lambda_max]
+    states, r = alteration_rollout(roll, x_init, s)
+    if pace:
+        s_pace, pace_ref = _pace_start(group, a, params, n_steps)
+        states_pace, r_pace = alteration_rollout(roll, x_init, s_pace)
+        starts["pace"] = float(r_pace.mean())
+        if r_pace.sum() > r.sum():
+            s, states, r, start_ref = s_pace, states_pace, r_pace, pace_ref
+    solver, hats = _window_solver(tick, n, window_ticks, tail_ticks, knot_ticks, max_iter)
+    length = window_ticks + tail_ticks
+    accepted = windows = 0
+    for start in range(0, n_steps, window_ticks):
+        windows += 1
+        left = n_steps - start
+        # 1. switch to a rule (held over the window, or `screen` s, then the incumbent again)
+        r_rules, s_rules = _switches(group, a, params, states[start], s[start], min(screen_ticks, left))
+        gains = np.cumsum(r_rules, axis=0) - np.cumsum(r[start : start + len(r_rules)])[:, None]
+        trials = []
+        for horizon in {min(window_ticks, left), min(screen_ticks, left)}:
+            best = int(np.argmax(gains[horizon - 1]))
+            if gains[horizon - 1, best] > 0:
+                trial = s[start:].copy()
+                trial[:horizon] = s_rules[:horizon, best]
+                trials.append(trial)
+        # 2. refine the incumbent's window by IPOPT
+        base = np.zeros(length)
+        base[: min(length, left)] = s[start : start + length]
+        weight = (np.arange(start, start + length) < n_steps).astype(float)
+        inner = base[:window_ticks]
+        solution = solver(
+            x0=np.zeros(hats.shape[1]), p=np.r_[states[start], base, weight], lbg=-1.0 - inner, ubg=1.0 - inner
+        )
+        delta = np.asarray(solution["x"]).ravel()
+        if np.isfinite(delta).all():
+            trial = s[start:].copy()
+            trial[:window_ticks] = np.clip(trial[:window_ticks] + (hats @ delta)[: min(window_ticks, left)], -1, 1)
+            trials.append(trial)
+        for trial in trials:  # kept only if the mean r of the whole run rises
+            trial_states, trial_r = alteration_rollout(roll, states[start], trial)
+            if trial_r.sum() > r[start:].sum():
+                s[start:], states[start:], r[start:] = trial, trial_states, trial_r
+                accepted += 1
+    theta_ref = states[:, group.assisted] + states[:, n] * s
+    value = resimulate(group, theta_ref, adjacency=a, blender=params)
+    if start_ref is not None:  # the start itself, in case the corrections gained less than the rounding
+        start_value = resimulate(group, start_ref, adjacency=a, blender=params)
+        if start_value > value:
+            value, theta_ref = start_value, start_ref
+    if not details:
+        return value
+    return {
+        "r": value,
+        "r_model": float(r.mean()),
+        "starts": starts,
+        "accepted": accepted,
+        "windows": windows,
+        "theta_ref": theta_ref,
+    }

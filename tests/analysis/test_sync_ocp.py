@@ -1,0 +1,75 @@
+"""Whole-run optimal control of the alteration: its model against the blocks, and its value against brute force."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from cogblocks.analysis.sync_ocp import alteration_model, alteration_rollout, resimulate, windowed_control_bound
+from cogblocks.data.groups import SyncGroup
+from cogblocks.diagrams.sync import pop_sync
+from cogblocks.sim import Simulator
+from cogblocks.sync.model import DT, BlenderParams, SyncModel, order_parameter
+
+# three participants, far apart in frequency (unlocked): the alteration matters from the first ticks
+GROUP = SyncGroup("tiny", 3, 0.4, (1.0, 3.5, 6.0), 1, 1.0, graph="all")
+TICKS = round(GROUP.duration / DT) + 1
+
+
+def _roll(group: SyncGroup, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return alteration_rollout(alteration_model(group), np.r_[np.zeros(group.n), BlenderParams().lambda_max], s)
+
+
+def test_doing_nothing_is_the_run_without_l2():
+    _, r = _roll(GROUP, np.zeros(TICKS))
+    without = Simulator(pop_sync(GROUP, l2=False)).run(n_steps=TICKS)["r"]
+    np.testing.assert_allclose(r, without, atol=1e-12)
+
+
+def test_model_of_any_alteration_is_the_blocks():
+    """Random fractions of λ, turned into θ_ref and re-simulated through the blocks, give the model's r."""
+    s = np.random.default_rng(0).uniform(-1.0, 1.0, TICKS)
+    states, r = _roll(GROUP, s)
+    theta_ref = states[:, GROUP.assisted] + states[:, GROUP.n] * s
+    assert resimulate(GROUP, theta_ref) == pytest.approx(float(r.mean()), abs=1e-12)
+    assert np.all(states[:, GROUP.n] <= BlenderParams().lambda_max + 1e-12)
+
+
+def _brute_force(group: SyncGroup, blocks: int, levels: np.ndarray) -> float:
+    """Best mean r over alterations piecewise constant on ``blocks`` blocks at ``levels`` × λ, on SyncModel."""
+    plans = np.array(list(itertools.product(levels, repeat=blocks)))
+    s = np.repeat(plans, -(-TICKS // blocks), axis=1)[:, :TICKS]
+    model = SyncModel.from_group(group)
+    theta = np.zeros((len(plans), group.n))
+    lam = np.full(len(plans), model.blender.lambda_max)
+    total = np.zeros(len(plans))
+    for k in range(TICKS):
+        reference = theta[:, group.assisted] + lam * s[:, k]  # the blender clips it to exactly λ · s
+        seen, _, lam = model.blend(theta, reference, lam)
+        total += order_parameter(seen)
+        theta, _ = model.advance(theta, seen, np.zeros(len(plans)), np.zeros(len(plans)))
+    return float(total.max() / TICKS)
+
+
+def test_bound_beats_brute_force_and_its_starts():
+    found = windowed_control_bound(GROUP, window=0.5, tail=0.25, knot=0.05, details=True)
+    brute = _brute_force(GROUP, 4, np.linspace(-1.0, 1.0, 5))
+    assert found["r"] >= brute - 1e-9
+    assert found["r"] == pytest.approx(found["r_model"], abs=1e-12)
+    assert found["r"] >= max(found["starts"].values()) - 1e-12
+    without = float(Simulator(pop_sync(GROUP, l2=False)).run(n_steps=TICKS)["r"].mean())
+    mean = float(Simulator(pop_sync(GROUP, motion="mean")).run(n_steps=TICKS)["r"].mean())
+    assert found["starts"]["none"] == pytest.approx(without, abs=1e-12)
+    assert found["starts"]["mean"] == pytest.approx(mean, abs=1e-12)
+    assert resimulate(GROUP, found["theta_ref"]) == found["r"]
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="knot"):
+        windowed_control_bound(GROUP, window=0.5, knot=0.3)
+    with pytest.raises(ValueError, match="adjacency must be 3x3"):
+        windowed_control_bound(GROUP, adjacency=np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="adjacency must be 3x3"):
+        resimulate(GROUP, np.zeros(5), adjacency=np.zeros((4, 4)))
