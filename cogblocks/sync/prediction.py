@@ -1,4 +1,4 @@
-"""The group, blender and reference as a smooth casadi ODE: what the MPC and the offline bound optimise through.
+"""The group, blender and reference as a smooth casadi ODE: what the MPC optimises through.
 
 State ``x = (θ_1 … θ_N, λ, θ_ref)`` (unwrapped phases), control ``u`` = the reference's frequency, parameters
 ``(ω, K)``. The blender is eqs. (3)–(6) made differentiable: the smooth saturation
