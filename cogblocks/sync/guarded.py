@@ -124,18 +124,6 @@ class GuardedPacingMotion(PacingMotion):
         if self.mode == PACE and not jumped:
             self.theta_ref_now = wrap_angle(self.theta_ref_now + dt * self.value)
 
-    def _identify(self, theta: np.ndarray, lam: float, ref: float, dt: float) -> None:
-        """Add this tick's increment to the least squares (θ̃ rebuilt from the reference and λ)."""
-        l0 = theta[self.assisted]
-        seen = theta.copy()
-        seen[self.assisted] = l0 + min(max(float(wrap_pi(ref - l0)), -lam), lam)
-        self.rls.info, self.rls.rhs = self.info, self.rhs
-        if usable_phases(self.previous) and self.rls.observe(
-            self.previous[: self.n], self.previous[self.n :], theta, dt
-        ):
-            self.count += 1
-        self.previous[: self.n], self.previous[self.n :] = seen, theta
-
     def _start(
         self, theta: np.ndarray, lam: float, ref: float, model: tuple[np.ndarray, float], k: int, dt: float
     ) -> None:

@@ -283,15 +283,7 @@ class PacingMotion(_MotionPorts):
         else:
             lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
             ref = self._reference(theta)
-            l0 = theta[self.assisted]
-            seen = theta.copy()
-            seen[self.assisted] = l0 + min(max(float(wrap_pi(ref - l0)), -lam), lam)
-            self.rls.info, self.rls.rhs = self.info, self.rhs
-            if usable_phases(self.previous) and self.rls.observe(
-                self.previous[: self.n], self.previous[self.n :], theta, dt
-            ):
-                self.count += 1
-            self.previous[: self.n], self.previous[self.n :] = seen, theta
+            seen = self._identify(theta, lam, ref, dt)
             model = self.model() if self.due else None
             if model is not None:
                 self._decide(theta, seen, lam, ref, model)
@@ -299,6 +291,19 @@ class PacingMotion(_MotionPorts):
                 return
         if self.mode == PACE:
             self.theta_ref_now = wrap_angle(self.theta_ref_now + dt * self.value)
+
+    def _identify(self, theta: np.ndarray, lam: float, ref: float, dt: float) -> np.ndarray:
+        """Add this tick's increment to the least squares; returns θ̃ (θ_L2 rebuilt from the reference and λ)."""
+        l0 = theta[self.assisted]
+        seen = theta.copy()
+        seen[self.assisted] = l0 + min(max(float(wrap_pi(ref - l0)), -lam), lam)
+        self.rls.info, self.rls.rhs = self.info, self.rhs
+        if usable_phases(self.previous) and self.rls.observe(
+            self.previous[: self.n], self.previous[self.n :], theta, dt
+        ):
+            self.count += 1
+        self.previous[: self.n], self.previous[self.n :] = seen, theta
+        return seen
 
     def candidates(self, theta_next: np.ndarray, ref: float, omega: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
         """(kinds, values, phases at the next tick) of the candidates: *none*, the *mean*s (one per gate), *pace*s.
