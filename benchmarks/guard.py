@@ -14,18 +14,11 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from benchmarks.pace import change_row, mean_r
 from cogblocks.data.groups import TABLE2
-from cogblocks.diagrams.sync import pop_sync
-from cogblocks.sim import Simulator
 from cogblocks.sync import GuardedPacingMotion
 
 BUDGET_MS = 10.0
-
-
-def _r(group, motion, n_steps: int) -> float:
-    return float(
-        Simulator(pop_sync(group, l2=motion is not None, motion=motion or "mean")).run(n_steps=n_steps)["r"].mean()
-    )
 
 
 def _timed(block: GuardedPacingMotion, record: list[float]) -> GuardedPacingMotion:
@@ -47,18 +40,10 @@ def run(quick: bool = False) -> Iterator[dict]:
     for number, group in TABLE2.items():
         duration = min(group.duration, 30.0) if quick else group.duration
         n_steps = round(duration / 0.01) + 1
-        r0, r_mean = _r(group, None, n_steps), _r(group, "mean", n_steps)
+        r0, r_mean = mean_r(group, None, n_steps), mean_r(group, "mean", n_steps)
         block = _timed(GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph), tick_ms)
-        r_guard = _r(group, block, n_steps)
-        pct, mean_pct = 100.0 * (r_guard - r0) / r0, 100.0 * (r_mean - r0) / r0
-        yield {
-            "name": f"guard.group{number}.change_pct",
-            "value": pct,
-            "unit": "%",
-            "reference": mean_pct,
-            "ratio": pct / mean_pct,
-            "duration_s": duration,
-        }
+        r_guard = mean_r(group, block, n_steps)
+        yield change_row(f"guard.group{number}.change_pct", r_guard, r0, r_mean, duration)
     for label, ms in (
         ("tick_p50", np.percentile(tick_ms, 50)),
         ("tick_p99", np.percentile(tick_ms, 99)),

@@ -22,10 +22,24 @@ from cogblocks.sync import PacingMotion
 BUDGET_MS = 10.0
 
 
-def _r(group, motion, n_steps: int) -> float:
+def mean_r(group, motion, n_steps: int) -> float:
+    """Time-averaged r of ``group`` over ``n_steps`` ticks with ``motion`` (None: without L2)."""
     return float(
         Simulator(pop_sync(group, l2=motion is not None, motion=motion or "mean")).run(n_steps=n_steps)["r"].mean()
     )
+
+
+def change_row(name: str, r: float, r0: float, r_mean: float, duration: float) -> dict:
+    """The change of r relative to no L2 (``r0``) in %, with ``mean``'s change as reference."""
+    pct, mean_pct = 100.0 * (r - r0) / r0, 100.0 * (r_mean - r0) / r0
+    return {
+        "name": name,
+        "value": pct,
+        "unit": "%",
+        "reference": mean_pct,
+        "ratio": pct / mean_pct,
+        "duration_s": duration,
+    }
 
 
 def run(quick: bool = False) -> Iterator[dict]:
@@ -35,20 +49,12 @@ def run(quick: bool = False) -> Iterator[dict]:
     for number, group in TABLE2.items():
         duration = min(group.duration, 30.0) if quick else group.duration
         n_steps = round(duration / 0.01) + 1
-        r0, r_mean = _r(group, None, n_steps), _r(group, "mean", n_steps)
+        r0, r_mean = mean_r(group, None, n_steps), mean_r(group, "mean", n_steps)
         pace = PacingMotion(group.n, group.assisted, adjacency=group.graph)
-        r_pace = _r(group, pace, n_steps)
+        r_pace = mean_r(group, pace, n_steps)
         decide_ms += pace.decide_ms
         ticks += n_steps
-        pct, mean_pct = 100.0 * (r_pace - r0) / r0, 100.0 * (r_mean - r0) / r0
-        yield {
-            "name": f"pace.group{number}.change_pct",
-            "value": pct,
-            "unit": "%",
-            "reference": mean_pct,
-            "ratio": pct / mean_pct,
-            "duration_s": duration,
-        }
+        yield change_row(f"pace.group{number}.change_pct", r_pace, r0, r_mean, duration)
     for q in (50, 99):
         ms = float(np.percentile(decide_ms, q))
         yield {"name": f"pace.latency_p{q}", "value": ms, "unit": "ms", "reference": BUDGET_MS, "ratio": ms / BUDGET_MS}
