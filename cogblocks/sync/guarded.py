@@ -26,7 +26,7 @@ import numpy as np
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
 from cogblocks.sim.params import finite_number, one_of
 from cogblocks.sync.identification import usable_phases
-from cogblocks.sync.pacing import _MODES, MEAN, NONE, PACE, PacingMotion
+from cogblocks.sync.pacing import _MODES, NONE, PACE, PacingMotion
 from cogblocks.sync.staged import StagedPrediction
 
 __all__ = ["MARGIN", "GuardedPacingMotion", "phase_error"]
@@ -129,10 +129,7 @@ class GuardedPacingMotion(PacingMotion):
     ) -> None:
         """Start the decision that applies one period from now, from this tick's state."""
         omega, gain = model
-        step = self.step
-        stiffness = abs(gain) * float(np.abs(self.adjacency).sum(axis=1).max())
-        if stiffness * step > 0.5:
-            step = 0.5 / stiffness
+        step = self._stable_step(gain)
         lead_time = self.decide_every * dt
         lead_steps = min(self.max_steps, max(1, math.ceil(lead_time / step - 1e-9)))
         value = self.value if self.mode != NONE else 0.0
@@ -185,16 +182,3 @@ class GuardedPacingMotion(PacingMotion):
                 return True
         self.mode, self.value = mode, value
         return False
-
-    def _best(self, kinds: np.ndarray, scores: np.ndarray) -> int:
-        """The index chosen with :class:`PacingMotion`'s margins (over *none*, and over the current choice)."""
-        best = int(np.argmax(scores))
-        if self.mode == MEAN:
-            current = 1 + int(np.argmin(np.abs(self.gates - self.value)))
-        else:
-            current = 0 if self.mode == NONE else 1 + len(self.gates)
-        if scores[best] < scores[current] + self.switch_margin:
-            best = current
-        if kinds[best] != NONE and scores[best] < scores[0] + self.margin:
-            best = 0
-        return best

@@ -340,15 +340,21 @@ class PacingMotion(_MotionPorts):
         e = abs(float(wrap_pi(seen[self.assisted] - theta[self.assisted])))
         lam_inf = max(0.0, 1.0 - e / b.e_max) * (b.lambda_max - b.lambda_min) + b.lambda_min
         lam_next = lam - dt * (b.kappa_up if lam <= lam_inf else b.kappa_down) * (lam - lam_inf)
-        step = self.step
-        stiffness = abs(gain) * float(np.abs(self.adjacency).sum(axis=1).max())
-        if stiffness * step > 0.5:
-            step = 0.5 / stiffness
+        step = self._stable_step(gain)
         steps = min(self.max_steps, max(1, round(self.horizon / step)))
         cands = self.candidates(theta_next, ref, omega, dt)
         scores = predicted_order(
             theta_next, lam_next, model, self.adjacency, self.assisted, b, cands, step=step, steps=steps
         )
+        return self._best(cands[0], scores), cands, scores
+
+    def _stable_step(self, gain: float) -> float:
+        """The prediction's Euler step: ``step``, shortened where the identified coupling would make it unstable."""
+        stiffness = abs(gain) * float(np.abs(self.adjacency).sum(axis=1).max())
+        return 0.5 / stiffness if stiffness * self.step > 0.5 else self.step
+
+    def _best(self, kinds: np.ndarray, scores: np.ndarray) -> int:
+        """The candidate chosen with the margins: over *none* (``margin``) and over the current choice."""
         best = int(np.argmax(scores))
         if self.mode == MEAN:
             current = 1 + int(np.argmin(np.abs(self.gates - self.value)))
@@ -356,9 +362,9 @@ class PacingMotion(_MotionPorts):
             current = 0 if self.mode == NONE else 1 + len(self.gates)
         if scores[best] < scores[current] + self.switch_margin:
             best = current
-        if cands[0][best] != NONE and scores[best] < scores[0] + self.margin:
+        if kinds[best] != NONE and scores[best] < scores[0] + self.margin:
             best = 0
-        return best, cands, scores
+        return best
 
     def _decide(
         self, theta: np.ndarray, seen: np.ndarray, lam: float, ref: float, model: tuple[np.ndarray, float]
