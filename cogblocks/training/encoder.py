@@ -39,7 +39,7 @@ from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
-__all__ = ["EncoderConfig", "FoldResult", "class_report", "cross_validate", "main", "train_network"]
+__all__ = ["EncoderConfig", "FoldResult", "class_report", "cross_validate", "main", "train_epoch", "train_network"]
 
 DEFAULT_OUT = Path("encoder.pt")  # in the working directory, never the shipped weights by default
 SHIPPED = Path(__file__).resolve().parent.parent / "data" / "weights" / "encoder.pt"
@@ -126,17 +126,30 @@ def train_network(inputs: np.ndarray, labels: np.ndarray, config: EncoderConfig,
     x = torch.as_tensor(inputs, dtype=torch.float32)
     y = torch.as_tensor(labels, dtype=torch.float32)
     loss_fn = nn.BCELoss()
-    network.train()
     for _ in range(config.epochs):
-        order = torch.randperm(len(x), generator=generator)
-        for start in range(0, len(x), config.batch_size):
-            batch = order[start : start + config.batch_size]
-            loss = loss_fn(network(x[batch]), y[batch])
-            optimiser.zero_grad()
-            loss.backward()
-            optimiser.step()
+        train_epoch(network, optimiser, loss_fn, x, y, config.batch_size, generator)
     network.eval()
     return network
+
+
+def train_epoch(
+    network: nn.Module,
+    optimiser: torch.optim.Optimizer,
+    loss_fn: nn.Module,
+    x: torch.Tensor,
+    y: torch.Tensor,
+    batch_size: int,
+    generator: torch.Generator,
+) -> None:
+    """One pass over ``x``, ``y`` in minibatches of ``batch_size``, shuffled by ``generator``, in training mode."""
+    network.train()
+    order = torch.randperm(len(x), generator=generator)
+    for start in range(0, len(x), batch_size):
+        batch = order[start : start + batch_size]
+        loss = loss_fn(network(x[batch]), y[batch])
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
 
 
 def cross_validate(

@@ -31,6 +31,7 @@ import torch
 from torch import nn
 
 from cogblocks.amplification.encoder import FEAR, NO_FEAR, EncoderNet, clip_decision
+from cogblocks.training.encoder import train_epoch
 
 __all__ = [
     "CHOSEN",
@@ -145,14 +146,7 @@ def train_member(
         y_stop = torch.as_tensor(stop[1], dtype=torch.float32)
     best_loss, best_state, best_epoch = np.inf, None, recipe.epochs
     for epoch in range(1, recipe.epochs + 1):
-        network.train()
-        order = torch.randperm(len(x), generator=generator)
-        for start in range(0, len(x), recipe.batch_size):
-            batch = order[start : start + recipe.batch_size]
-            loss = loss_fn(network(x[batch]), y[batch])
-            optimiser.zero_grad()
-            loss.backward()
-            optimiser.step()
+        train_epoch(network, optimiser, loss_fn, x, y, recipe.batch_size, generator)
         if early:
             network.eval()
             with torch.no_grad():
