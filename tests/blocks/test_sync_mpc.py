@@ -116,3 +116,57 @@ def test_the_runners_mpc_plans_on_the_groups_own_graph():
     for graph in ("all", weights):
         group = SyncGroup("g", 4, 0.5, (2.0, 2.5, 3.0, 3.5), 1, 2.0, graph=graph)
         np.testing.assert_array_equal(MOTIONS["mpc"](group).adjacency, group.adjacency())
+
+
+class _CountingSolver:
+    """Wraps the planner's IPOPT solver to record the iterations of every call and the tick it ran in."""
+
+    def __init__(self, solver, motion):
+        self.solver, self.motion, self.calls = solver, motion, []
+
+    def __call__(self, **kw):
+        sol = self.solver(**kw)
+        self.calls.append(self.solver.stats()["iter_count"])
+        return sol
+
+    def stats(self):
+        return self.solver.stats()
+
+
+def _mpc_with_counter(group, probes=(), **options):
+    mpc = MPCMotion(group.n, group.assisted, **options)
+    sim = Simulator(pop_sync(group, motion=mpc), probes=list(probes))
+    solver, screen = mpc._planner
+    counter = _CountingSolver(solver, mpc)
+    mpc._planner = (counter, screen)
+    return mpc, sim, counter
+
+
+def test_mpc_spreads_each_solve_over_the_period_and_its_plan_beats_the_candidates():
+    group = TABLE2[1]
+    mpc, sim, counter = _mpc_with_counter(group, probes=["l2.theta_ref"], iterations_per_tick=2, max_iter=20)
+    ref = sim.run(n_steps=301)["l2.theta_ref"]
+    assert counter.calls and max(counter.calls) <= 2  # no tick runs more than a chunk
+    # every decision's solve ends (converged or 20 iterations) well inside its 50-tick period
+    assert mpc.fallbacks == 0 and len(mpc.solve_ms) == 1 + 300 // 50
+    assert len(mpc.tick_ms) == len(counter.calls) + len(mpc.solve_ms)  # decision ticks screen, the others solve
+    # within a period θ_ref turns at the one committed frequency, whatever the chunks do to the later knots
+    step = np.angle(np.exp(1j * np.diff(ref)))
+    for k0 in range(50, 300, 50):
+        np.testing.assert_allclose(step[k0 : k0 + 50], step[k0], atol=1e-9)
+    # the plan kept is the one whose cost the block recorded, and that is no worse than the candidate's
+    _, screen = mpc._planner
+    cost = float(screen(np.column_stack([mpc.plan[1:]] * mpc.candidates), mpc.solve_par).full()[0, 0])
+    assert cost == pytest.approx(mpc.solve_cost, abs=1e-12)
+
+
+def test_mpc_solve_cut_short_by_its_period_is_a_fallback_and_the_candidate_plan_stands():
+    group = TABLE2[1]
+    # a 2-tick period with one iteration per tick leaves one chunk per decision: most solves are cut short
+    mpc, sim, counter = _mpc_with_counter(group, replan_every=2, step=0.02, iterations_per_tick=1, max_iter=20)
+    sim.run(n_steps=41)
+    assert max(counter.calls) <= 1
+    converged = sum(1 for c in counter.calls if c < 1)  # a chunk that stopped before its one iteration converged
+    cut_short = len(mpc.solve_ms) - 1 - converged  # the last decision's solve is still running
+    assert len(mpc.solve_ms) >= mpc.fallbacks >= cut_short > 0
+    assert np.isfinite(mpc.plan).all()

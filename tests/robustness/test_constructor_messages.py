@@ -238,6 +238,7 @@ CASES = [
     case("MPCMotion", "step", 0.0, "(0.0, inf)"),
     case("MPCMotion", "sharpness", 3, "one of"),
     case("MPCMotion", "candidates", 1, "integer >= 2"),
+    case("MPCMotion", "iterations_per_tick", 0, "integer >= 1"),
     case("MPCMotion", "trust", 0.0, "(0.0, inf)"),
     case("MPCMotion", "time_limit_ms", 0.0, "(0.0, inf)"),
     case("MPCMotion", "max_iter", 0, "integer >= 1"),
