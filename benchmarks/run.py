@@ -36,6 +36,7 @@ MODULES = [
     "benchmarks.amplification",
     "benchmarks.optimal_blending",
     "benchmarks.mpc",
+    "benchmarks.bound",
     "benchmarks.pace",
     "benchmarks.guard",
     "benchmarks.soak",
