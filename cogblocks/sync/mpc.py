@@ -110,8 +110,8 @@ class MPCMotion(_MotionPorts):
     counted in ``fallbacks``, as is a solve that returns a non-finite iterate.
     Before the first plan (and while the identified model is not yet usable: fewer than ``min_ticks``
     observed increments), θ_ref follows the circular mean of the others' phases, which the first plan then
-    continues from. :attr:`solve_ms` holds the CPU time of every decision (its ticks summed), :attr:`tick_ms` that of every
-    tick that worked on one.
+    continues from. :attr:`solve_ms` holds the CPU time of every decision (its ticks summed), :attr:`tick_ms`
+    that of every tick that worked on one.
 
     Parameters
     ----------
