@@ -28,7 +28,7 @@ from torch import nn
 from cogblocks.amplification.encoder import N_POINTS, EncoderNet
 from cogblocks.amplification.judges import kinematic_features
 
-__all__ = ["ARCHITECTURES", "ConvEncoder", "GRUEncoder", "architecture_inputs", "build_network"]
+__all__ = ["ARCHITECTURES", "ConvEncoder", "GRUEncoder", "architecture_inputs", "as_encoder_net", "build_network"]
 
 #: Architecture names understood by :func:`build_network` and :func:`architecture_inputs`.
 ARCHITECTURES = ("mlp", "cnn", "gru", "mlp_kinematic", "mlp_shape_kinematic")
@@ -142,6 +142,25 @@ def build_network(architecture: str, n_inputs: int, hidden: int, dropout: float)
     if architecture in ("mlp", "mlp_kinematic", "mlp_shape_kinematic"):
         return EncoderNet(n_inputs=n_inputs, hidden=hidden, dropout=dropout)
     raise ValueError(f"unknown architecture {architecture!r}; expected one of {ARCHITECTURES}")
+
+
+def as_encoder_net(network: nn.Module) -> EncoderNet:
+    """``network`` as the :class:`EncoderNet` the judges, the blender and the checkpoints take.
+
+    Raises
+    ------
+    ValueError
+        For a network that is no one-hidden-layer ReLU network of the 60 profile inputs (a judge-only
+        candidate: the GRU, or an MLP with kinematic inputs).
+    """
+    if isinstance(network, ConvEncoder):
+        return network.to_encoder_net()
+    if isinstance(network, EncoderNet) and network.hidden.in_features == _AXES * N_POINTS:
+        return network
+    raise ValueError(
+        f"as_encoder_net: a {type(network).__name__} of these inputs is no EncoderNet of the 60 profile inputs; "
+        "it can only be a judge"
+    )
 
 
 def architecture_inputs(architecture: str, profile: np.ndarray, velocity: np.ndarray, dt: float) -> np.ndarray:

@@ -35,6 +35,7 @@ from cogblocks.amplification.judges import BLENDER_ENSEMBLE, JUDGE_ENSEMBLE, ens
 from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.reach import ReachLibrary
+from cogblocks.training.architectures import as_encoder_net
 from cogblocks.training.recipe import CHOSEN, RECIPES, TrainingRecipe, train_fold_ensemble, train_member
 
 __all__ = ["main", "train_blender_ensemble", "train_judges"]
@@ -68,11 +69,11 @@ def train_blender_ensemble(
             inputs, fear, np.asarray(train), recipe, fold_seed=seed + BLENDER_FOLD_OFFSET,
             torch_seed=7000 + 10 * seed, members=folds, log=log, name="blender ensemble member",
         )  # fmt: skip
-        return networks[:members]
+        return [as_encoder_net(n) for n in networks[:members]]
     networks = []
     for i in range(members):
         started = time.perf_counter()
-        networks.append(train_member(inputs[train], fear[train], recipe, 7000 + 10 * seed + i)[0])
+        networks.append(as_encoder_net(train_member(inputs[train], fear[train], recipe, 7000 + 10 * seed + i)[0]))
         if log is not None:
             log(f"blender ensemble member {i + 1}/{members} ({time.perf_counter() - started:.1f} s)")
     return networks
@@ -88,10 +89,11 @@ def train_judges(
     log: Callable[[str], None] | None = print,
 ) -> list[EncoderNet]:
     """``members`` networks, each trained on ``train`` without one of ``members`` seeded, stratified folds."""
-    return train_fold_ensemble(
+    networks = train_fold_ensemble(
         classifier_inputs(library), library.fear, np.asarray(train), recipe, fold_seed=seed,
         torch_seed=9000 + 10 * seed, members=members, log=log, name="judge",
     )  # fmt: skip
+    return [as_encoder_net(n) for n in networks]
 
 
 def main(argv: Sequence[str] | None = None) -> None:

@@ -14,9 +14,11 @@ from cogblocks.training.architectures import (
     ConvEncoder,
     GRUEncoder,
     architecture_inputs,
+    as_encoder_net,
     build_network,
 )
-from cogblocks.training.recipe import TrainingRecipe, cross_validate_recipe, train_member
+from cogblocks.training.judges import train_blender_ensemble, train_judges
+from cogblocks.training.recipe import TrainingRecipe, cross_validate_recipe, train_fold_ensemble, train_member
 
 torch.set_num_threads(1)
 
@@ -102,3 +104,20 @@ def test_every_architecture_cross_validates(small, name):
     assert -1.0 <= row["score"] <= 1.0 and 0.0 <= row["accuracy"] <= 1.0
     if name != "mlp":  # seeded: the same row again (the MLP's is checked in test_judge_recipe)
         assert row == cross_validate_recipe(inputs, library.fear, rows, recipe, seed=1, folds=3, members=2)
+
+
+def test_judges_of_the_cnn_recipe_are_encoder_nets_and_judge_only_candidates_are_refused(small):
+    library, inputs = small
+    recipe = TrainingRecipe(epochs=2, batch_size=16, hidden=3, architecture="cnn")
+    judges = train_judges(library, np.arange(24), recipe, seed=0, members=2, log=None)
+    assert all(isinstance(n, EncoderNet) and n.hidden.out_features == 3 * 20 for n in judges)
+    # the same networks as training the members directly and exporting them
+    direct = train_fold_ensemble(inputs, library.fear, np.arange(24), recipe, fold_seed=0, torch_seed=9000, members=2)
+    for judge, conv in zip(judges, direct, strict=True):
+        np.testing.assert_allclose(judge.predict(inputs), conv.predict(inputs), rtol=1e-5, atol=1e-6)
+    blender = train_blender_ensemble(library, np.arange(24), recipe, seed=0, members=1, log=None)
+    assert isinstance(blender[0], EncoderNet)
+    with pytest.raises(ValueError, match="can only be a judge"):
+        as_encoder_net(GRUEncoder(hidden=2))
+    with pytest.raises(ValueError, match="can only be a judge"):
+        as_encoder_net(EncoderNet(n_inputs=66, hidden=2))
