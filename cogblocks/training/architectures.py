@@ -26,7 +26,7 @@ import torch
 from torch import nn
 
 from cogblocks.amplification.encoder import N_POINTS, EncoderNet
-from cogblocks.amplification.judges import kinematic_features
+from cogblocks.amplification.judges import KINEMATIC_INPUTS, ensemble_inputs
 
 __all__ = ["ARCHITECTURES", "ConvEncoder", "GRUEncoder", "architecture_inputs", "as_encoder_net", "build_network"]
 
@@ -139,27 +139,28 @@ def build_network(architecture: str, n_inputs: int, hidden: int, dropout: float)
         return ConvEncoder(channels=hidden, dropout=dropout)
     if architecture == "gru":
         return GRUEncoder(hidden=hidden, dropout=dropout)
-    if architecture in ("mlp", "mlp_kinematic", "mlp_shape_kinematic"):
+    if architecture == "mlp" or architecture in KINEMATIC_INPUTS:
         return EncoderNet(n_inputs=n_inputs, hidden=hidden, dropout=dropout)
     raise ValueError(f"unknown architecture {architecture!r}; expected one of {ARCHITECTURES}")
 
 
-def as_encoder_net(network: nn.Module) -> EncoderNet:
-    """``network`` as the :class:`EncoderNet` the judges, the blender and the checkpoints take.
+def as_encoder_net(network: nn.Module, *, judge: bool = False) -> EncoderNet:
+    """``network`` as the :class:`EncoderNet` the blender (or, with ``judge``, the judges) and the checkpoints take.
 
     Raises
     ------
     ValueError
-        For a network that is no one-hidden-layer ReLU network of the 60 profile inputs (a judge-only
-        candidate: the GRU, or an MLP with kinematic inputs).
+        For the blender, a network that is no one-hidden-layer ReLU network of the 60 profile inputs (a
+        judge-only candidate: an MLP with kinematic inputs); for either, a :class:`GRUEncoder`.
     """
     if isinstance(network, ConvEncoder):
         return network.to_encoder_net()
-    if isinstance(network, EncoderNet) and network.hidden.in_features == _AXES * N_POINTS:
+    if isinstance(network, EncoderNet) and (judge or network.hidden.in_features == _AXES * N_POINTS):
         return network
+    role = "neither the blender's nor a shipped judge" if isinstance(network, GRUEncoder) else "only a judge"
     raise ValueError(
-        f"as_encoder_net: a {type(network).__name__} of these inputs is no EncoderNet of the 60 profile inputs; "
-        "it can only be a judge"
+        f"as_encoder_net: a {type(network).__name__} of {network.mean.numel()} inputs is no EncoderNet of the 60 "
+        f"profile inputs; it can be {role}"
     )
 
 
@@ -179,11 +180,4 @@ def architecture_inputs(architecture: str, profile: np.ndarray, velocity: np.nda
     """
     if architecture not in ARCHITECTURES:
         raise ValueError(f"unknown architecture {architecture!r}; expected one of {ARCHITECTURES}")
-    profile = np.asarray(profile, dtype=np.float64)
-    if architecture in ("mlp", "cnn", "gru"):
-        return profile
-    features = kinematic_features(velocity, dt)
-    if architecture == "mlp_shape_kinematic":
-        peak = np.maximum(features[:, :1], 1e-9)  # column 0: peak speed
-        profile = profile / peak
-    return np.hstack([profile, features])
+    return ensemble_inputs(profile, velocity, dt, architecture)

@@ -37,6 +37,7 @@ from cogblocks.training.encoder import train_epoch
 
 __all__ = [
     "CHOSEN",
+    "JUDGE_CHOSEN",
     "RECIPES",
     "TrainingRecipe",
     "clipped_shares",
@@ -132,6 +133,11 @@ RECIPES = {
 #: The recipe of the shipped ensembles: the best cross-validation score of :data:`RECIPES`
 #: (``python -m cogblocks.training.recipe --seed 0``; docs/pop-amplification.md has the table).
 CHOSEN = "longest_fast"
+
+#: The recipe of the shipped judges: the best cross-validation score of :data:`RECIPES` (architectures
+#: included). Its networks take the kinematic features too, so the blender cannot constrain them: it keeps
+#: :data:`CHOSEN`, the best of the candidates it can express (``mlp``, ``cnn``).
+JUDGE_CHOSEN = "mlp_kinematic"
 
 
 def stratified_folds(labels: np.ndarray, rows: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:

@@ -106,7 +106,7 @@ def test_every_architecture_cross_validates(small, name):
         assert row == cross_validate_recipe(inputs, library.fear, rows, recipe, seed=1, folds=3, members=2)
 
 
-def test_judges_of_the_cnn_recipe_are_encoder_nets_and_judge_only_candidates_are_refused(small):
+def test_judges_of_the_cnn_and_kinematic_recipes_and_judge_only_candidates(small):
     library, inputs = small
     recipe = TrainingRecipe(epochs=2, batch_size=16, hidden=3, architecture="cnn")
     judges = train_judges(library, np.arange(24), recipe, seed=0, members=2, log=None)
@@ -117,7 +117,15 @@ def test_judges_of_the_cnn_recipe_are_encoder_nets_and_judge_only_candidates_are
         np.testing.assert_allclose(judge.predict(inputs), conv.predict(inputs), rtol=1e-5, atol=1e-6)
     blender = train_blender_ensemble(library, np.arange(24), recipe, seed=0, members=1, log=None)
     assert isinstance(blender[0], EncoderNet)
-    with pytest.raises(ValueError, match="can only be a judge"):
-        as_encoder_net(GRUEncoder(hidden=2))
-    with pytest.raises(ValueError, match="can only be a judge"):
-        as_encoder_net(EncoderNet(n_inputs=66, hidden=2))
+    with pytest.raises(ValueError, match="GRUEncoder of 60 inputs .* neither the blender's nor a shipped judge"):
+        as_encoder_net(GRUEncoder(hidden=2), judge=True)
+    wide = EncoderNet(n_inputs=66, hidden=2)
+    with pytest.raises(
+        ValueError, match="EncoderNet of 66 inputs is no EncoderNet of the 60 profile inputs; it can be only"
+    ):
+        as_encoder_net(wide)
+    assert as_encoder_net(wide, judge=True) is wide
+    # the judges of a kinematic recipe take the 66 inputs of architecture_inputs
+    kinematic = TrainingRecipe(epochs=1, batch_size=16, hidden=3, architecture="mlp_kinematic")
+    wide_judges = train_judges(library, np.arange(24), kinematic, seed=0, members=2, log=None)
+    assert all(n.hidden.in_features == 66 for n in wide_judges)
