@@ -2,7 +2,7 @@
 
 Usage::
 
-    python -m cogblocks.experiments.amplification_fresh --library-seed 2027 [--limit N]
+    python -m cogblocks.experiments.amplification_fresh --library-seed 2027 [--share 0.3] [--limit N]
         [--variants blend blend_rl optimised] [--json]
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
@@ -10,8 +10,10 @@ figures grow optimistic. Here the humans come from ``generate_reach_library(libr
 network, judge, setting or test used (participants with new styles, too): every movement of it that
 does not encode ``e_des`` is replayed through the *shipped* chain unchanged (the projector's library
 is the shipped training part, the same encoder, w̃, corrector, blender ensemble, judges and
-subspace), in both directions. Prints the rows of :func:`~cogblocks.diagrams.amplification.run_amplification`
-(``e_des = 1`` at the top level, ``e_des = 0`` under ``"e_des_0"``).
+subspace), in both directions; ``--share`` replays a seeded, stratified share of it instead
+(``ReachLibrary.split(share, 0)``'s second part, as large as the held-out part for 0.3). Prints the rows
+of :func:`~cogblocks.diagrams.amplification.run_amplification` (``e_des = 1`` at the top level,
+``e_des = 0`` under ``"e_des_0"``).
 """
 
 from __future__ import annotations
@@ -65,10 +67,17 @@ def run_fresh(
     variants: Sequence[str] = ("blend", "blend_rl", "optimised"),
     *,
     limit: int | None = None,
+    share: float = 1.0,
     humans: ReachLibrary | None = None,
 ) -> dict[str, Any]:
-    """Both directions on the fresh movements, keyed as ``cogblocks run amplification --json``."""
-    rows: dict[str, Any] = {"library_seed": library_seed}
+    """Both directions on the fresh movements, keyed as ``cogblocks run amplification --json``.
+
+    ``share`` < 1 keeps the seeded, stratified ``ReachLibrary.split(share, 0)`` validation part of them.
+    """
+    if share < 1.0:
+        humans = generate_reach_library(library_seed) if humans is None else humans
+        humans = humans.subset(humans.split(share, 0)[1])
+    rows: dict[str, Any] = {"library_seed": library_seed, "share": share}
     for e_des in (1, 0):
         setup = fresh_setup(library_seed, e_des, humans)
         result = run_amplification(
@@ -83,12 +92,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point: print both directions on a fresh library (JSON with ``--json``)."""
     parser = argparse.ArgumentParser(prog="python -m cogblocks.experiments.amplification_fresh", description=__doc__)
     parser.add_argument("--library-seed", type=int, default=FRESH_SEED, help=f"default {FRESH_SEED}")
+    parser.add_argument("--share", type=float, default=1.0, help="seeded stratified share replayed (default 1)")
     parser.add_argument("--limit", type=int, default=None, help="replay only the first N movements per direction")
     parser.add_argument("--variants", nargs="+", default=["blend", "blend_rl", "optimised"])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    rows = run_fresh(args.library_seed, args.variants, limit=args.limit)
+    rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share)
     if args.json:
         print(json.dumps(rows))
         return 0

@@ -54,3 +54,9 @@ def test_command_prints_both_directions(capsys):
     assert main(["--limit", "1", "--variants", "blend", "--json"]) == 0
     printed = json.loads(capsys.readouterr().out)
     assert printed["library_seed"] == FRESH_SEED and printed["blend"]["n"] == 1 and "e_des_0" in printed
+
+
+def test_share_replays_a_stratified_part(humans):
+    rows = run_fresh(FRESH_SEED, ("blend",), share=0.5, humans=humans)
+    # half of each class of the 2 + 2 movements: one no-fear human encodes fear, one fear human has it removed
+    assert rows["share"] == 0.5 and rows["blend"]["n"] == 1 and rows["e_des_0"]["blend"]["n"] == 1
