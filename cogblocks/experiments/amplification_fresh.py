@@ -69,16 +69,18 @@ def run_fresh(
     limit: int | None = None,
     share: float = 1.0,
     humans: ReachLibrary | None = None,
+    directions: Sequence[int] = (1, 0),
 ) -> dict[str, Any]:
     """Both directions on the fresh movements, keyed as ``cogblocks run amplification --json``.
 
-    ``share`` < 1 keeps the seeded, stratified ``ReachLibrary.split(share, 0)`` validation part of them.
+    ``share`` < 1 keeps the seeded, stratified ``ReachLibrary.split(share, 0)`` validation part of them;
+    ``directions`` are the ``e_des`` run.
     """
     if share < 1.0:
         humans = generate_reach_library(library_seed) if humans is None else humans
         humans = humans.subset(humans.split(share, 0)[1])
     rows: dict[str, Any] = {"library_seed": library_seed, "share": share}
-    for e_des in (1, 0):
+    for e_des in directions:
         setup = fresh_setup(library_seed, e_des, humans)
         result = run_amplification(
             variants, limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
@@ -95,15 +97,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--share", type=float, default=1.0, help="seeded stratified share replayed (default 1)")
     parser.add_argument("--limit", type=int, default=None, help="replay only the first N movements per direction")
     parser.add_argument("--variants", nargs="+", default=["blend", "blend_rl", "optimised"])
+    parser.add_argument(
+        "--e-des", type=int, choices=(0, 1), nargs="+", default=[1, 0], help="directions (default both)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share)
+    rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des)
     if args.json:
         print(json.dumps(rows))
         return 0
-    for key, direction in (("encode fear", rows), ("remove fear", rows["e_des_0"])):
-        for variant in args.variants:
+    for key, direction in (("encode fear", rows), ("remove fear", rows.get("e_des_0", {}))):
+        for variant in (v for v in args.variants if v in direction):
             r = direction[variant]
             print(
                 f"{key} {variant}: encoded {r['encoded']:.0%}, ensemble judge {r['encoded_independent']:.0%}, "

@@ -54,6 +54,9 @@ def test_command_prints_both_directions(capsys):
     assert main(["--limit", "1", "--variants", "blend", "--json"]) == 0
     printed = json.loads(capsys.readouterr().out)
     assert printed["library_seed"] == FRESH_SEED and printed["blend"]["n"] == 1 and "e_des_0" in printed
+    assert main(["--limit", "1", "--variants", "blend", "--e-des", "0"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("remove fear blend: encoded ") and lines[0].endswith("n 1")
 
 
 def test_share_replays_a_stratified_part(humans):
