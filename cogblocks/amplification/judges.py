@@ -5,7 +5,8 @@ verdict on its output says little. The judges here took no part in producing a m
 
 - :class:`EncoderEnsemble`: encoder networks trained on other seeds and folds than the blender's
   (``python -m cogblocks.training.judges``); the ensemble's ε̂ is the mean of its members' ε̂,
-  decided with the clipping rule (ε̂ > 0.9 fear, ε̂ < 0.1 no fear).
+  decided with the clipping rule (ε̂ > 0.9 fear, ε̂ < 0.1 no fear). Its networks may take the six
+  kinematic features after the 60 profile inputs (:data:`KINEMATIC_INPUTS`, :func:`ensemble_inputs`).
 - :class:`KinematicJudge`: a classifier of another family, a logistic regression (scikit-learn) on
   kinematic features of the movement (:func:`kinematic_features`), decided at probability 0.5:
   its probabilities are not sharp enough for the clipping rule.
@@ -27,6 +28,7 @@ import torch
 
 from cogblocks.amplification.encoder import (
     FEAR,
+    N_POINTS,
     NO_FEAR,
     REST_SPEED,
     UNDECIDED,
@@ -38,16 +40,22 @@ from cogblocks.amplification.encoder import (
 
 __all__ = [
     "FEATURES",
+    "KINEMATIC_INPUTS",
     "EncoderEnsemble",
     "Judges",
     "KinematicJudge",
     "ensemble_checkpoint",
+    "ensemble_inputs",
     "kinematic_features",
     "load_ensemble",
 ]
 
 #: Names of the columns of :func:`kinematic_features`.
 FEATURES = ("peak_speed", "time_to_peak", "duration", "log_mean_jerk", "mean_speed", "peak_fraction")
+
+#: Ensemble architectures (a checkpoint's ``"architecture"``) whose networks take the six
+#: :func:`kinematic_features` after the 60 profile inputs; ``True``: the profile divided by the peak speed.
+KINEMATIC_INPUTS = {"mlp_kinematic": False, "mlp_shape_kinematic": True}
 
 BLENDER_ENSEMBLE = "encoder_ensemble.pt"
 JUDGE_ENSEMBLE = "judges.pt"
@@ -96,6 +104,38 @@ def kinematic_features(velocity: np.ndarray, dt: float, rest_speed: float = REST
     return rows[0] if single else rows
 
 
+def ensemble_inputs(
+    profile: np.ndarray, velocity: np.ndarray, dt: float, architecture: str = "mlp", rest_speed: float = REST_SPEED
+) -> np.ndarray:
+    """The inputs of an ensemble of ``architecture`` for movements given by their profiles and velocities.
+
+    Parameters
+    ----------
+    profile : numpy.ndarray, shape (n, 60)
+        The movements restricted to their duration and resampled (the encoder's inputs).
+    velocity : numpy.ndarray, shape (n, T, 3)
+        The same movements' padded velocities, for :func:`kinematic_features`.
+    dt : float
+        Sampling step in seconds.
+    architecture : str
+        ``profile`` as it is for any architecture not in :data:`KINEMATIC_INPUTS`; otherwise followed
+        by the kinematic features (the profile divided by the peak speed first if asked).
+    rest_speed : float
+        Speed (mm/s) at or below which the hand is at rest.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 60) or (n, 66)
+    """
+    profile = np.asarray(profile, dtype=np.float64)
+    if architecture not in KINEMATIC_INPUTS:
+        return profile
+    features = kinematic_features(velocity, dt, rest_speed)
+    if KINEMATIC_INPUTS[architecture]:
+        profile = profile / np.maximum(features[:, :1], 1e-9)  # column 0: peak speed
+    return np.hstack([profile, features])
+
+
 class EncoderEnsemble:
     """Several :class:`EncoderNet` scoring a movement together: ε̂ is the mean of their ε̂.
 
@@ -103,23 +143,33 @@ class EncoderEnsemble:
     ----------
     networks : sequence of EncoderNet
         At least one network, all with the same number of inputs.
+    architecture : str, optional
+        What the networks take (:func:`ensemble_inputs`); by default the ``"architecture"`` of the
+        checkpoint they were loaded from (:func:`load_ensemble`), else ``"mlp"`` (the 60 profile inputs).
     """
 
-    def __init__(self, networks: Sequence[EncoderNet]) -> None:
+    def __init__(self, networks: Sequence[EncoderNet], architecture: str | None = None) -> None:
         networks = list(networks)
         if not networks or not all(isinstance(n, EncoderNet) for n in networks):
             raise ValueError("EncoderEnsemble: networks must be a non-empty sequence of EncoderNet")
+        if architecture is None:
+            architecture = str(getattr(networks[0], "checkpoint", {}).get("architecture", "mlp"))
+        expected = 3 * N_POINTS + (len(FEATURES) if architecture in KINEMATIC_INPUTS else 0)
+        sizes = sorted({n.hidden.in_features for n in networks})
+        if sizes != [expected]:
+            raise ValueError(f"EncoderEnsemble: {architecture!r} networks take {expected} inputs, got {sizes}")
         self.networks = networks
+        self.architecture = architecture
 
     def __len__(self) -> int:
         return len(self.networks)
 
     def members(self, inputs: np.ndarray) -> np.ndarray:
-        """ε̂ of every member for inputs (n, 60): shape (members, n)."""
+        """ε̂ of every member for inputs (n, 60), or (n, 66) with kinematic inputs: shape (members, n)."""
         return np.stack([network.predict(inputs) for network in self.networks])
 
     def predict(self, inputs: np.ndarray) -> np.ndarray:
-        """Mean ε̂ of the members for inputs (n, 60): shape (n,)."""
+        """Mean ε̂ of the members for inputs (n, 60), or (n, 66) with kinematic inputs: shape (n,)."""
         return self.members(inputs).mean(axis=0)
 
 
@@ -174,17 +224,18 @@ class Judges:
         """Decisions (1 fear, 0 no fear, −1 undecided) of each judge on padded velocities (n, T, 3).
 
         The ensemble classifies each movement restricted and resampled as the online classifier
-        does; ``"ensemble"`` uses the clipping rule on the mean ε̂, ``"kinematic"`` decides at 0.5.
+        does (followed by its kinematic features if its architecture takes them); ``"ensemble"`` uses
+        the clipping rule on the mean ε̂, ``"kinematic"`` decides at 0.5.
         """
         v = np.asarray(velocity, dtype=np.float64)
-        n_in = self.ensemble.networks[0].hidden.in_features
-        inputs = np.zeros((len(v), n_in))
+        inputs = np.zeros((len(v), 3 * N_POINTS))
         moved = np.zeros(len(v), dtype=bool)
         for i, movement in enumerate(v):
             length = movement_length(movement, rest_speed)
             if length:
                 inputs[i] = (resampling_matrix(length) @ movement[:length]).T.reshape(-1)
                 moved[i] = True
+        inputs = ensemble_inputs(inputs, v, self.kinematic.dt, self.ensemble.architecture, rest_speed)
         ensemble = np.where(moved, clip_decision(self.ensemble.predict(inputs)), UNDECIDED)
         kinematic = np.where(moved, np.where(self.kinematic.predict(v) > 0.5, FEAR, NO_FEAR), UNDECIDED)
         return {"ensemble": ensemble, "kinematic": kinematic}

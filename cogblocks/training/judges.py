@@ -2,12 +2,13 @@
 
 Usage::
 
-    python -m cogblocks.training.judges --seed 0 [--recipe NAME]
+    python -m cogblocks.training.judges --seed 0 [--recipe NAME] [--judge-recipe NAME]
 
-Both ensembles are trained with the same recipe (:data:`~cogblocks.training.recipe.CHOSEN`, chosen by
-cross-validation inside the training part, ``python -m cogblocks.training.recipe``), only on the
-training part of the shipped encoder's split (the validation movements stay unseen), and are
-disjoint (other folds, other seeds):
+The blender's ensemble is trained with the recipe :data:`~cogblocks.training.recipe.CHOSEN`, the judges
+with :data:`~cogblocks.training.recipe.JUDGE_CHOSEN` (both chosen by cross-validation inside the training
+part, ``python -m cogblocks.training.recipe``; the judges' networks also take kinematic features, which
+the blender cannot constrain), only on the training part of the shipped encoder's split (the validation
+movements stay unseen), and are disjoint (other folds, other seeds):
 
 - the blender's ensemble: ``blender_members`` networks (:func:`train_blender_ensemble`), torch seeds
   ``7000 + 10·seed + i`` (``encoder_ensemble.pt``);
@@ -35,7 +36,8 @@ from cogblocks.amplification.judges import BLENDER_ENSEMBLE, JUDGE_ENSEMBLE, ens
 from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.reach import ReachLibrary
-from cogblocks.training.recipe import CHOSEN, RECIPES, TrainingRecipe, train_fold_ensemble, train_member
+from cogblocks.training.architectures import architecture_inputs, as_encoder_net
+from cogblocks.training.recipe import CHOSEN, JUDGE_CHOSEN, RECIPES, TrainingRecipe, train_fold_ensemble, train_member
 
 __all__ = ["main", "train_blender_ensemble", "train_judges"]
 
@@ -68,11 +70,11 @@ def train_blender_ensemble(
             inputs, fear, np.asarray(train), recipe, fold_seed=seed + BLENDER_FOLD_OFFSET,
             torch_seed=7000 + 10 * seed, members=folds, log=log, name="blender ensemble member",
         )  # fmt: skip
-        return networks[:members]
+        return [as_encoder_net(n) for n in networks[:members]]
     networks = []
     for i in range(members):
         started = time.perf_counter()
-        networks.append(train_member(inputs[train], fear[train], recipe, 7000 + 10 * seed + i)[0])
+        networks.append(as_encoder_net(train_member(inputs[train], fear[train], recipe, 7000 + 10 * seed + i)[0]))
         if log is not None:
             log(f"blender ensemble member {i + 1}/{members} ({time.perf_counter() - started:.1f} s)")
     return networks
@@ -88,10 +90,12 @@ def train_judges(
     log: Callable[[str], None] | None = print,
 ) -> list[EncoderNet]:
     """``members`` networks, each trained on ``train`` without one of ``members`` seeded, stratified folds."""
-    return train_fold_ensemble(
-        classifier_inputs(library), library.fear, np.asarray(train), recipe, fold_seed=seed,
+    inputs = architecture_inputs(recipe.architecture, classifier_inputs(library), library.velocity, library.dt)
+    networks = train_fold_ensemble(
+        inputs, library.fear, np.asarray(train), recipe, fold_seed=seed,
         torch_seed=9000 + 10 * seed, members=members, log=log, name="judge",
     )  # fmt: skip
+    return [as_encoder_net(n, judge=True) for n in networks]
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -103,7 +107,13 @@ def main(argv: Sequence[str] | None = None) -> None:
         description="Train the optimised blender's encoder ensemble and the independent judges' ensemble.",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the folds and the weights (default 0)")
-    parser.add_argument("--recipe", default=CHOSEN, choices=sorted(RECIPES), help=f"training recipe (default {CHOSEN})")
+    parser.add_argument(
+        "--recipe", default=CHOSEN, choices=sorted(RECIPES), help=f"the blender ensemble's recipe (default {CHOSEN})"
+    )
+    parser.add_argument(
+        "--judge-recipe", default=JUDGE_CHOSEN, choices=sorted(RECIPES),
+        help=f"the judges' recipe (default {JUDGE_CHOSEN})",
+    )  # fmt: skip
     parser.add_argument(
         "--blender-members", type=int, default=BLENDER_MEMBERS,
         help=f"networks the blender constrains (default {BLENDER_MEMBERS})",
@@ -114,14 +124,20 @@ def main(argv: Sequence[str] | None = None) -> None:
 
     torch.set_num_threads(1)
     setup = amplification_setup(None, 1)
-    recipe = RECIPES[args.recipe]
-    meta = {"seed": args.seed, "library_sha256": library_fingerprint(setup.library), "recipe": args.recipe,
-            **{f"recipe_{k}": v for k, v in asdict(recipe).items()}}  # fmt: skip
-    blender = train_blender_ensemble(setup.library, setup.train, recipe, args.seed, args.blender_members)
-    judges = train_judges(setup.library, setup.train, recipe, args.seed, args.judges)
+    fingerprint = library_fingerprint(setup.library)
+
+    def meta(name: str) -> dict:
+        recipe = RECIPES[name]
+        return {"seed": args.seed, "library_sha256": fingerprint, "recipe": name, "architecture": recipe.architecture,
+                **{f"recipe_{k}": v for k, v in asdict(recipe).items()}}  # fmt: skip
+
+    blender = train_blender_ensemble(
+        setup.library, setup.train, RECIPES[args.recipe], args.seed, args.blender_members
+    )  # fmt: skip
+    judges = train_judges(setup.library, setup.train, RECIPES[args.judge_recipe], args.seed, args.judges)
     args.out.mkdir(parents=True, exist_ok=True)
-    torch.save(ensemble_checkpoint(blender, role="blender", **meta), args.out / BLENDER_ENSEMBLE)
-    torch.save(ensemble_checkpoint(judges, role="judges", **meta), args.out / JUDGE_ENSEMBLE)
+    torch.save(ensemble_checkpoint(blender, role="blender", **meta(args.recipe)), args.out / BLENDER_ENSEMBLE)
+    torch.save(ensemble_checkpoint(judges, role="judges", **meta(args.judge_recipe)), args.out / JUDGE_ENSEMBLE)
     print(f"saved {len(blender)} blender networks and {len(judges)} judges to {args.out}")
 
 

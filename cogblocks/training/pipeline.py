@@ -38,7 +38,7 @@ from cogblocks.training.amplification_env import record_episodes
 from cogblocks.training.corrector import CorrectorConfig, train
 from cogblocks.training.encoder import EncoderConfig, cross_validate
 from cogblocks.training.judges import BLENDER_MEMBERS, train_blender_ensemble, train_judges
-from cogblocks.training.recipe import CHOSEN, RECIPES
+from cogblocks.training.recipe import CHOSEN, JUDGE_CHOSEN, RECIPES
 
 __all__ = ["DIRECTIONS", "load_library", "run_pipeline"]
 
@@ -138,12 +138,18 @@ def run_pipeline(
     folds = cross_validate(config, seed, library=movements, log=say)
     best = max(folds, key=lambda r: r.accuracy)
     encoder = best.network
-    recipe = RECIPES[CHOSEN] if not (quick or encoder_epochs) else replace(RECIPES[CHOSEN], epochs=epochs)
-    say(f"blender ensemble and judges (recipe '{CHOSEN}', at most {recipe.epochs} epochs)")
+    recipe, judge_recipe = (
+        (RECIPES[CHOSEN], RECIPES[JUDGE_CHOSEN])
+        if not (quick or encoder_epochs)
+        else (replace(RECIPES[CHOSEN], epochs=epochs), replace(RECIPES[JUDGE_CHOSEN], epochs=epochs))
+    )
+    say(f"blender ensemble (recipe '{CHOSEN}') and judges ('{JUDGE_CHOSEN}'), at most {recipe.epochs} epochs")
     ensemble = train_blender_ensemble(library, train_idx, recipe, seed, BLENDER_MEMBERS, log=say)
     blender_networks = [*([encoder] if BLENDER_WITH_ENCODER else []), *ensemble]
     judges = Judges(
-        EncoderEnsemble(train_judges(library, train_idx, recipe, seed, 5, log=say)),
+        EncoderEnsemble(
+            train_judges(library, train_idx, judge_recipe, seed, 5, log=say), architecture=judge_recipe.architecture
+        ),
         KinematicJudge(library.dt).fit(movements.velocity, movements.fear),
     )
     setups = {}
@@ -176,7 +182,8 @@ def run_pipeline(
         out / "encoder.pt",
     )
     torch.save(ensemble_checkpoint(ensemble, role="blender", **meta), out / "encoder_ensemble.pt")
-    torch.save(ensemble_checkpoint(judges.ensemble.networks, role="judges", **meta), out / "judges.pt")
+    judge_meta = {**meta, "recipe": JUDGE_CHOSEN, "architecture": judge_recipe.architecture}
+    torch.save(ensemble_checkpoint(judges.ensemble.networks, role="judges", **judge_meta), out / "judges.pt")
     torch.save(
         {"state_dict": corrector.state_dict(), "seed": seed, "config": asdict(corrector_config)}, out / "corrector.pt"
     )

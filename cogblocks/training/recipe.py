@@ -5,9 +5,10 @@ Usage::
     python -m cogblocks.training.recipe --seed 0   # cross-validates RECIPES on the training part
     python -m cogblocks.training.recipe --kinematic   # the kinematic judge's candidates, the same way
 
-An ensemble (:func:`train_fold_ensemble`) holds ``members`` :class:`EncoderNet`: member ``i`` is
-trained on the given movements without the ``i``-th of ``members`` seeded, stratified folds and
-stopped early on that fold (the epoch of lowest loss on it is kept), with AdamW (weight decay).
+An ensemble (:func:`train_fold_ensemble`) holds ``members`` networks (:class:`EncoderNet` or another
+candidate of :mod:`~cogblocks.training.architectures`): member ``i`` is trained on the given movements
+without the ``i``-th of ``members`` seeded, stratified folds and stopped early on that fold (the epoch
+of lowest loss on it is kept), with AdamW (weight decay).
 
 The recipe is chosen only by cross-validation inside the training part of the shipped split
 (:func:`cross_validate_recipe`): the training part is cut into ``folds`` stratified outer folds; for
@@ -30,11 +31,13 @@ import numpy as np
 import torch
 from torch import nn
 
-from cogblocks.amplification.encoder import FEAR, NO_FEAR, EncoderNet, clip_decision
+from cogblocks.amplification.encoder import FEAR, NO_FEAR, clip_decision
+from cogblocks.training.architectures import ARCHITECTURES, architecture_inputs, build_network
 from cogblocks.training.encoder import train_epoch
 
 __all__ = [
     "CHOSEN",
+    "JUDGE_CHOSEN",
     "RECIPES",
     "TrainingRecipe",
     "clipped_shares",
@@ -72,6 +75,9 @@ class TrainingRecipe:
         Hidden ReLU units.
     dropout : float
         Dropout on the hidden units during training.
+    architecture : str
+        The network and its inputs (:data:`~cogblocks.training.architectures.ARCHITECTURES`); for
+        ``"cnn"`` ``hidden`` is the number of filters, for ``"gru"`` the state size.
     """
 
     epochs: int = 40
@@ -82,10 +88,13 @@ class TrainingRecipe:
     stop_on: str = "loss"
     hidden: int = 200
     dropout: float = 0.2
+    architecture: str = "mlp"
 
     def __post_init__(self) -> None:
         if self.stop_on not in ("loss", "clipped"):
             raise ValueError(f"TrainingRecipe: stop_on must be 'loss' or 'clipped', got {self.stop_on!r}")
+        if self.architecture not in ARCHITECTURES:
+            raise ValueError(f"TrainingRecipe: architecture must be one of {ARCHITECTURES}, got {self.architecture!r}")
 
 
 #: The recipes compared by ``python -m cogblocks.training.recipe`` (``"baseline"`` is the encoder's own).
@@ -104,12 +113,31 @@ RECIPES = {
     "stop_clipped": TrainingRecipe(
         epochs=300, batch_size=32, learning_rate=3e-3, weight_decay=1e-2, patience=60, stop_on="clipped"
     ),
+    # architectures and inputs (cogblocks.training.architectures), longest_fast's optimiser settings
+    **{
+        name: TrainingRecipe(
+            epochs=600, batch_size=32, learning_rate=3e-3, weight_decay=1e-2, hidden=hidden, architecture=arch
+        )
+        for name, arch, hidden in (
+            ("cnn", "cnn", 16),
+            ("mlp_kinematic", "mlp_kinematic", 200),
+            ("mlp_shape_kinematic", "mlp_shape_kinematic", 200),
+        )
+    },
+    "gru": TrainingRecipe(
+        epochs=300, batch_size=32, learning_rate=3e-3, weight_decay=1e-2, hidden=32, architecture="gru"
+    ),
 }
 
 
 #: The recipe of the shipped ensembles: the best cross-validation score of :data:`RECIPES`
 #: (``python -m cogblocks.training.recipe --seed 0``; docs/pop-amplification.md has the table).
 CHOSEN = "longest_fast"
+
+#: The recipe of the shipped judges: the best cross-validation score of :data:`RECIPES` (architectures
+#: included). Its networks take the kinematic features too, so the blender cannot constrain them: it keeps
+#: :data:`CHOSEN`, the best of the candidates it can express (``mlp``, ``cnn``).
+JUDGE_CHOSEN = "mlp_kinematic"
 
 
 def stratified_folds(labels: np.ndarray, rows: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
@@ -129,12 +157,12 @@ def train_member(
     recipe: TrainingRecipe,
     seed: int,
     stop: tuple[np.ndarray, np.ndarray] | None = None,
-) -> tuple[EncoderNet, int]:
+) -> tuple[nn.Module, int]:
     """One network trained on ``inputs`` (n, 60) and boolean ``labels``; with ``stop`` (inputs, labels),
     stopped early on their loss (see :class:`TrainingRecipe`). Returns the network and the epoch kept."""
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
-    network = EncoderNet(n_inputs=inputs.shape[1], hidden=recipe.hidden, dropout=recipe.dropout)
+    network = build_network(recipe.architecture, inputs.shape[1], recipe.hidden, recipe.dropout)
     network.set_normalisation(inputs)
     optimiser = torch.optim.AdamW(network.parameters(), lr=recipe.learning_rate, weight_decay=recipe.weight_decay)
     x = torch.as_tensor(inputs, dtype=torch.float32)
@@ -176,7 +204,7 @@ def train_fold_ensemble(
     members: int = 5,
     log: Callable[[str], None] | None = None,
     name: str = "member",
-) -> list[EncoderNet]:
+) -> list[nn.Module]:
     """``members`` networks: member ``i`` trained on ``rows`` without fold ``i`` and stopped early on it.
 
     The folds are :func:`stratified_folds` of ``rows`` (seed ``fold_seed``); member ``i`` has torch seed
@@ -285,7 +313,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     setup = amplification_setup(None, 1)
-    inputs, labels = classifier_inputs(setup.library), setup.library.fear
+    profile, labels = classifier_inputs(setup.library), setup.library.fear
     if args.kinematic:
         features = kinematic_features(setup.library.velocity[setup.train], setup.library.dt)
         for name, row in cross_validate_kinematic(features, labels[setup.train], args.seed).items():
@@ -293,7 +321,9 @@ def main(argv: Sequence[str] | None = None) -> None:
         return
     for name in args.only or RECIPES:
         started = time.perf_counter()
-        row = cross_validate_recipe(inputs, labels, setup.train, RECIPES[name], args.seed)
+        recipe = RECIPES[name]
+        inputs = architecture_inputs(recipe.architecture, profile, setup.library.velocity, setup.library.dt)
+        row = cross_validate_recipe(inputs, labels, setup.train, recipe, args.seed)
         cells = " ".join(f"{k} {v:.3f}" for k, v in row.items())
         print(f"{name}: {cells} ({time.perf_counter() - started:.0f} s) {asdict(RECIPES[name])}", flush=True)
 

@@ -13,6 +13,7 @@ from cogblocks.amplification.judges import (
     EncoderEnsemble,
     Judges,
     KinematicJudge,
+    ensemble_inputs,
     kinematic_features,
     load_ensemble,
 )
@@ -63,7 +64,10 @@ def test_judges_decide_as_the_clipping_rule_on_the_mean(setup):
     for v in lib.velocity:
         n = movement_length(v, 1.0)
         rows.append(resample_movement(v, n))  # the spline fit itself, not the shared linear map
-    members = [net.predict(np.array(rows)) for net in judges.ensemble.networks]
+    inputs = np.array(rows)
+    if judges.ensemble.architecture == "mlp_kinematic":  # the shipped judges also take the kinematic features
+        inputs = np.hstack([inputs, [kinematic_features(v, lib.dt) for v in lib.velocity]])
+    members = [net.predict(inputs) for net in judges.ensemble.networks]
     np.testing.assert_array_equal(decisions["ensemble"], clip_decision(np.mean(members, axis=0)))
     np.testing.assert_array_equal(decisions["kinematic"], (judges.kinematic.predict(lib.velocity) > 0.5).astype(int))
 
@@ -73,8 +77,9 @@ def test_shipped_ensembles_are_disjoint_and_reproducible(setup):
     assert len(judges) == 5 and len(blender) >= 1
     weights = [n.hidden.weight.detach().numpy() for n in [setup.encoder, *blender, *judges]]
     for i in range(len(weights)):
-        for j in range(i):
-            assert not np.allclose(weights[i], weights[j])
+        for j in range(i):  # networks of different inputs (judges with kinematic features) differ anyway
+            assert weights[i].shape != weights[j].shape or not np.allclose(weights[i], weights[j])
+    assert all(n.hidden.in_features == 66 for n in judges) and judges[0].checkpoint["architecture"] == "mlp_kinematic"
     assert judges[0].checkpoint["role"] == "judges"
     # the judges' training is seeded: a tiny run twice gives the same networks
     config = TrainingRecipe(epochs=1)
@@ -129,3 +134,21 @@ def test_encoder_ensemble_is_the_mean():
     assert len(Judges(ensemble, KinematicJudge(0.01)).ensemble) == 2
     with pytest.raises(ValueError, match="non-empty"):
         EncoderEnsemble([])
+    with pytest.raises(ValueError, match="'mlp_kinematic' networks take 66 inputs, got \\[60\\]"):
+        EncoderEnsemble(nets, architecture="mlp_kinematic")
+
+
+def test_ensemble_inputs_append_the_kinematic_features():
+    library = generate_reach_library(3, n_subjects=1, n_fear=2, n_no_fear=2)
+    profile = np.random.default_rng(0).normal(size=(4, 60))
+    np.testing.assert_array_equal(ensemble_inputs(profile, library.velocity, library.dt), profile)
+    np.testing.assert_array_equal(ensemble_inputs(profile, library.velocity, library.dt, "cnn"), profile)
+    features = np.array([kinematic_features(v, library.dt) for v in library.velocity])
+    plain = ensemble_inputs(profile, library.velocity, library.dt, "mlp_kinematic")
+    np.testing.assert_array_equal(plain, np.hstack([profile, features]))
+    shape = ensemble_inputs(profile, library.velocity, library.dt, "mlp_shape_kinematic")
+    np.testing.assert_allclose(shape[:, :60], profile / features[:, :1])
+    torch.manual_seed(0)
+    wide = [EncoderNet(n_inputs=66, hidden=4)]
+    ensemble = EncoderEnsemble(wide, architecture="mlp_kinematic")
+    np.testing.assert_allclose(ensemble.predict(plain), wide[0].predict(plain))

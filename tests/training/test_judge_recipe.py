@@ -14,6 +14,7 @@ from cogblocks.data.reach import generate_reach_library
 from cogblocks.training.judges import train_blender_ensemble, train_judges
 from cogblocks.training.recipe import (
     CHOSEN,
+    JUDGE_CHOSEN,
     RECIPES,
     TrainingRecipe,
     clipped_shares,
@@ -112,9 +113,11 @@ def test_judges_and_blender_ensemble_interface(small, tmp_path):
 
 
 def test_the_chosen_recipe_is_one_of_the_compared():
-    assert CHOSEN in RECIPES and RECIPES["baseline"] == TrainingRecipe()
+    assert CHOSEN in RECIPES and JUDGE_CHOSEN in RECIPES and RECIPES["baseline"] == TrainingRecipe()
+    assert RECIPES[CHOSEN].architecture in ("mlp", "cnn")  # the blender can constrain only these
     shipped = load_ensemble("judges.pt")
-    assert shipped[0].checkpoint["recipe"] == CHOSEN and len(shipped) == 5
+    assert shipped[0].checkpoint["recipe"] == JUDGE_CHOSEN and len(shipped) == 5
+    assert shipped[0].checkpoint["architecture"] == RECIPES[JUDGE_CHOSEN].architecture
     assert load_ensemble("encoder_ensemble.pt")[0].checkpoint["recipe"] == CHOSEN
 
 

@@ -1,0 +1,65 @@
+"""The shipped chain evaluated on a freshly generated library (cogblocks.experiments.amplification_fresh)."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from cogblocks.amplification import NoCorrection
+from cogblocks.data.reach import generate_reach_library
+from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
+from cogblocks.experiments.amplification_fresh import FRESH_SEED, fresh_setup, main, run_fresh
+from cogblocks.sim import Simulator
+
+torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="module")
+def humans():
+    return generate_reach_library(FRESH_SEED, n_subjects=2, n_fear=2, n_no_fear=2)
+
+
+def test_fresh_setup_replays_only_fresh_movements_through_the_shipped_chain(humans):
+    shipped = amplification_setup(None, 0)
+    setup = fresh_setup(FRESH_SEED, 0, humans)
+    np.testing.assert_array_equal(setup.library.velocity[setup.train], shipped.movements.velocity)
+    np.testing.assert_array_equal(setup.library.velocity[setup.val], humans.velocity)
+    assert setup.movements is shipped.movements and setup.table is shipped.table and setup.encoder is shipped.encoder
+    assert setup.subspace is shipped.subspace
+    # the fear humans of the fresh library, none of them a movement of the shipped library
+    np.testing.assert_array_equal(setup.library.fear[setup.humans], True)
+    assert len(setup.humans) == 2
+    assert not any(np.array_equal(h, m) for h in setup.library.velocity[setup.humans] for m in shipped.library.velocity)
+    with pytest.raises(ValueError, match="window and step"):
+        fresh_setup(FRESH_SEED, 1, generate_reach_library(1, n_subjects=1, n_fear=1, n_no_fear=1, max_len=190))
+
+
+def test_run_fresh_matches_replaying_by_hand(humans):
+    rows = run_fresh(FRESH_SEED, ("blend",), limit=1, humans=humans)
+    assert rows["library_seed"] == FRESH_SEED and rows["blend"]["n"] == 1 and rows["e_des_0"]["blend"]["n"] == 1
+    shipped = amplification_setup(None, 1)
+    first = int(np.flatnonzero(~humans.fear)[0])  # the first no-fear human is the one made to encode fear
+    d = pop_amplification(
+        (humans.velocity[first], humans.position[first]), shipped.movements, table=shipped.table,
+        encoder=shipped.encoder, corrector=NoCorrection(), e_des=1, seed=len(shipped.movements) + first,
+    )  # fmt: skip
+    trace = Simulator(d).run(n_steps=humans.max_len)
+    distance = float(np.linalg.norm(trace["p_a"][-1] - trace["p_h"][-1]))
+    assert rows["blend"]["final_distance_mm"] == pytest.approx(distance)
+    assert set(rows["blend"]) >= {"encoded", "terminal_ok", "judges", "encoded_independent", "judges_agreement"}
+
+
+def test_command_prints_both_directions(capsys):
+    assert main(["--limit", "1", "--variants", "blend", "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["library_seed"] == FRESH_SEED and printed["blend"]["n"] == 1 and "e_des_0" in printed
+    assert main(["--limit", "1", "--variants", "blend", "--e-des", "0"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("remove fear blend: encoded ") and lines[0].endswith("n 1")
+
+
+def test_share_replays_a_stratified_part(humans):
+    rows = run_fresh(FRESH_SEED, ("blend",), share=0.5, humans=humans)
+    # half of each class of the 2 + 2 movements: one no-fear human encodes fear, one fear human has it removed
+    assert rows["share"] == 0.5 and rows["blend"]["n"] == 1 and rows["e_des_0"]["blend"]["n"] == 1
