@@ -9,11 +9,13 @@ prediction through the blender on the group it identifies online, with two diffe
   it compares that prediction with the phases observed: if the relative phases (the common drift removed,
   as r ignores it) are off by more than ``tolerance`` rad RMS, the model cannot be trusted over seconds and
   the block does the ``fallback`` instead of what the model prefers. Before the first check has passed it
-  does ``start``.
+  does ``start``. Until that first check, decision periods are ``first_period`` ticks (half a period by default),
+  so the first decision applies sooner: a short run is otherwise half over before the block does anything.
 * **Bounded work per tick.** A decision is started on a period's first tick and advanced a few Euler steps
   on every tick of the period, so no tick does more than ``ceil(steps / decide_every)`` Euler steps over the
   candidates (:attr:`max_evaluations` candidate-steps); it applies from the next period's first tick: the
-  decision is taken every ``decide_every`` ticks, one period after the state it starts from.
+  decision is taken every ``decide_every`` ticks (``first_period`` before the first passed check), one period
+  after the state it starts from.
 """
 
 from __future__ import annotations
@@ -24,16 +26,17 @@ from typing import Any
 import numpy as np
 
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
-from cogblocks.sim.params import finite_number, one_of
+from cogblocks.sim.params import finite_number, one_of, positive_int
 from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.pacing import _MODES, NONE, PACE, PacingMotion
 from cogblocks.sync.staged import StagedPrediction
 
 __all__ = ["MARGIN", "GuardedPacingMotion", "phase_error"]
 
-#: Default ``margin``: twice :class:`PacingMotion`'s. Tuned on the validation split (38 groups where the circular mean
-#: changes r, cut to 60 s): the same mean gain, and it removes the small losses (worst −0.54 % → 0.00 %).
-MARGIN = 0.01
+#: Default ``margin``: four times :class:`PacingMotion`'s. Re-tuned on 600 validation groups (docs/pop-sync.md,
+#: "Guarded pacing motion computer"): 0.01 let a predicted gain of ~0.012 in mean r act on a 15-participant ring near
+#: locking where the realised change was −1.1 %; 0.02 removes it at about the same mean gain.
+MARGIN = 0.02
 
 
 def phase_error(predicted: np.ndarray, observed: np.ndarray) -> float:
@@ -56,6 +59,8 @@ class GuardedPacingMotion(PacingMotion):
         to be followed.
     fallback : {"none", "mean"}
         What the block does for the next period when the last check failed.
+    first_period : int, optional
+        Ticks of a decision period until a check has passed (half of ``decide_every`` by default, at least 1).
 
     Notes
     -----
@@ -76,12 +81,18 @@ class GuardedPacingMotion(PacingMotion):
         *,
         tolerance: float = 0.3,
         fallback: str = "none",
+        first_period: int | None = None,
         **pacing: Any,
     ) -> None:
         super().__init__(n, assisted, **{"margin": MARGIN} | pacing)
         self.tolerance = finite_number(self, "tolerance", tolerance, low=0.0)
         self.fallback = _MODES[one_of(self, "fallback", fallback, tuple(_MODES))]
+        default_first = max(1, self.decide_every // 2)
+        self.first_period = positive_int(self, "first_period", default_first if first_period is None else first_period)
         self.add_state("error", math.inf)  # the last check's error (inf: none passed yet)
+        self.add_state("passed", False)  # a check has passed since the last reset
+        self.add_state("next_due", 0)  # the tick the next decision is due at
+        self.add_state("running", self.first_period)  # ticks of the period of the decision in progress
         self.job: StagedPrediction | None = None
         self.job_tick = -1  # the tick the job's lead ends at
         self.job_omega = np.zeros(n)  # the frequencies the job's pacing grid was built on
@@ -91,7 +102,7 @@ class GuardedPacingMotion(PacingMotion):
     def max_evaluations(self) -> int:
         """Bound on the candidate-steps of one tick: Euler steps per tick × the most candidates."""
         candidates = 1 + len(self.gates) + 2 * (self.frequencies + 1)
-        return math.ceil(2 * self.max_steps / self.decide_every) * candidates
+        return math.ceil(2 * self.max_steps / min(self.decide_every, self.first_period)) * candidates
 
     def reset(self) -> None:
         super().reset()
@@ -100,7 +111,7 @@ class GuardedPacingMotion(PacingMotion):
     def update(self, k: int) -> None:
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
         dt = self.dt * self.every
-        if k % self.decide_every == 0:
+        if k >= self.next_due:
             self.due = True
         jumped = False
         if not (usable_phases(theta) and math.isfinite(lam)):
@@ -116,11 +127,15 @@ class GuardedPacingMotion(PacingMotion):
                     ref = self._reference(theta) - (dt * self.value if jumped else 0.0)
                 self.job = None
                 model = self.model()
-                if model is not None:
+                if model is None:  # not trusted yet: try again next tick
+                    self.next_due = k + 1
+                else:
+                    self.running = self.decide_every if self.passed else self.first_period
                     self._start(theta, lam, ref, model, k, dt)
+                    self.next_due = k + self.running
                 self.due = False
         if self.job is not None and not self.job.done:
-            self.job.advance(math.ceil(self.job.total_steps / self.decide_every))
+            self.job.advance(math.ceil(self.job.total_steps / self.running))
         if self.mode == PACE and not jumped:
             self.theta_ref_now = wrap_angle(self.theta_ref_now + dt * self.value)
 
@@ -130,7 +145,7 @@ class GuardedPacingMotion(PacingMotion):
         """Start the decision that applies one period from now, from this tick's state."""
         omega, gain = model
         step = self._stable_step(gain)
-        lead_time = self.decide_every * dt
+        lead_time = self.running * dt
         lead_steps = min(self.max_steps, max(1, math.ceil(lead_time / step - 1e-9)))
         value = self.value if self.mode != NONE else 0.0
         self.job = StagedPrediction(
@@ -147,7 +162,7 @@ class GuardedPacingMotion(PacingMotion):
             step=step,
             steps=min(self.max_steps, max(1, round(self.horizon / step))),
         )
-        self.job_tick = k + self.decide_every
+        self.job_tick = k + self.running
         self.job_omega = omega
 
     def _model_reference(self, theta: np.ndarray, ref: float, elapsed: float) -> float:
@@ -162,6 +177,7 @@ class GuardedPacingMotion(PacingMotion):
         if k == self.job_tick:
             self.error = phase_error(job.lead_theta, theta)
             self.errors.append(self.error)
+            self.passed = self.passed or self.error <= self.tolerance
         kinds, values, _ = job.candidates
         scores = job.scores
         if self.error > self.tolerance:
