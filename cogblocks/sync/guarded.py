@@ -28,7 +28,7 @@ import numpy as np
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
 from cogblocks.sim.params import finite_number, one_of, positive_int
 from cogblocks.sync.identification import usable_phases
-from cogblocks.sync.pacing import _MODES, NONE, PACE, PacingMotion
+from cogblocks.sync.pacing import _MODES, MEAN, NONE, PACE, PacingMotion
 from cogblocks.sync.staged import StagedPrediction
 
 __all__ = ["MARGIN", "GuardedPacingMotion", "phase_error"]
@@ -61,6 +61,11 @@ class GuardedPacingMotion(PacingMotion):
         What the block does for the next period when the last check failed.
     first_period : int, optional
         Ticks of a decision period until a check has passed (half of ``decide_every`` by default, at least 1).
+    commit : int
+        Periods for which an alteration, once chosen, is kept (while the checks pass) before it is chosen
+        again; 0 (the default): every decision chooses afresh. A prediction scores a candidate held over the
+        whole horizon; re-choosing every period can stop a pacing plan half-way, where the group is left
+        worse off than unaltered (docs/pop-sync.md). Not the default: validated on too few groups.
 
     Notes
     -----
@@ -82,6 +87,7 @@ class GuardedPacingMotion(PacingMotion):
         tolerance: float = 0.3,
         fallback: str = "none",
         first_period: int | None = None,
+        commit: int = 0,
         **pacing: Any,
     ) -> None:
         super().__init__(n, assisted, **{"margin": MARGIN} | pacing)
@@ -89,10 +95,12 @@ class GuardedPacingMotion(PacingMotion):
         self.fallback = _MODES[one_of(self, "fallback", fallback, tuple(_MODES))]
         default_first = max(1, self.decide_every // 2)
         self.first_period = positive_int(self, "first_period", default_first if first_period is None else first_period)
+        self.commit = positive_int(self, "commit", commit, minimum=0)
         self.add_state("error", math.inf)  # the last check's error (inf: none passed yet)
         self.add_state("passed", False)  # a check has passed since the last reset
         self.add_state("next_due", 0)  # the tick the next decision is due at
         self.add_state("running", self.first_period)  # ticks of the period of the decision in progress
+        self.add_state("held", 0)  # periods the alteration in progress has been applied since it was chosen
         self.job: StagedPrediction | None = None
         self.job_tick = -1  # the tick the job's lead ends at
         self.job_omega = np.zeros(n)  # the frequencies the job's pacing grid was built on
@@ -182,9 +190,10 @@ class GuardedPacingMotion(PacingMotion):
         scores = job.scores
         if self.error > self.tolerance:
             mode, value = self.fallback, math.pi
+            self.held = self.commit  # no commitment to the fallback
             self.choices.append(-1)
         else:
-            best = self._best(kinds, scores)
+            best = self._committed(kinds, scores)
             mode, value = int(kinds[best]), float(values[best])
             self.choices.append(mode)
             if mode == PACE:
@@ -198,3 +207,19 @@ class GuardedPacingMotion(PacingMotion):
                 return True
         self.mode, self.value = mode, value
         return False
+
+    def _committed(self, kinds: np.ndarray, scores: np.ndarray) -> int:
+        """The alteration in progress while it is committed (``commit``), otherwise the choice with the margins."""
+        if self.mode == NONE:
+            current = 0
+        elif self.mode == MEAN:
+            current = 1 + int(np.argmin(np.abs(self.gates - self.value)))
+        else:  # the first pace candidate continues the pace in progress
+            current = 1 + len(self.gates)
+        if self.mode != NONE and self.held < self.commit:
+            self.held += 1
+            return current
+        best = self._best(kinds, scores)
+        if best != current:
+            self.held = 1
+        return best

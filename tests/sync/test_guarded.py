@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
 from cogblocks.diagrams.sync import MOTIONS, pop_sync
 from cogblocks.sim import Diagram, Simulator
 from cogblocks.sync import GuardedPacingMotion
@@ -146,6 +146,30 @@ def test_periods_stay_short_while_every_check_fails():
     assert min(block.errors) > block.tolerance and set(block.choices) == {-1}
 
 
+def test_a_committed_pace_is_kept_for_commit_periods():
+    """With ``commit``, a pace once chosen is continued (same frequency, θ_ref = anchor + ω t without a jump) for
+    ``commit`` periods; without it, the same group's pace is stopped half-way (validation group 429)."""
+    group = random_groups(430, "validation", 0)[429]
+    plain = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph)
+    _closed_loop(group, plain, group.duration, [])
+    assert plain.choices[:4] == [PACE] * 4 and plain.choices[4] == NONE
+    kept = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, commit=10)
+    values: list[float] = []
+    finish = kept._finish
+
+    def recorded(theta, ref, k, dt) -> bool:
+        jumped = finish(theta, ref, k, dt)
+        values.append(kept.value)
+        return jumped
+
+    kept._finish = recorded
+    trace = _closed_loop(group, kept, group.duration, [])
+    assert kept.choices == [PACE] * 10 and len(set(values)) == 1
+    # from the first decision (tick 150) on, θ_ref advances by exactly ω dt a tick: one plan, never re-anchored
+    step = np.angle(np.exp(1j * np.diff(trace["ref"][151:])))
+    np.testing.assert_allclose(step, values[0] * 0.01, atol=1e-9)
+
+
 def _run_inputs(block: GuardedPacingMotion, theta: np.ndarray, lam: np.ndarray) -> np.ndarray:
     d = Diagram()
     m = d.add("m", block)
@@ -211,3 +235,5 @@ def test_guard_is_a_policy_of_the_held_out_runner_and_checks_its_parameters():
         GuardedPacingMotion(3, 0, tolerance=-1.0)
     with pytest.raises(ValueError, match="first_period must be"):
         GuardedPacingMotion(3, 0, first_period=0)
+    with pytest.raises(ValueError, match="commit must be"):
+        GuardedPacingMotion(3, 0, commit=-1)
