@@ -9,11 +9,13 @@ prediction through the blender on the group it identifies online, with two diffe
   it compares that prediction with the phases observed: if the relative phases (the common drift removed,
   as r ignores it) are off by more than ``tolerance`` rad RMS, the model cannot be trusted over seconds and
   the block does the ``fallback`` instead of what the model prefers. Before the first check has passed it
-  does ``start``.
+  does ``start``. Until that first check, decision periods are ``first_period`` ticks (half a period by default),
+  so the first decision applies sooner: a short run is otherwise half over before the block does anything.
 * **Bounded work per tick.** A decision is started on a period's first tick and advanced a few Euler steps
   on every tick of the period, so no tick does more than ``ceil(steps / decide_every)`` Euler steps over the
   candidates (:attr:`max_evaluations` candidate-steps); it applies from the next period's first tick: the
-  decision is taken every ``decide_every`` ticks, one period after the state it starts from.
+  decision is taken every ``decide_every`` ticks (``first_period`` before the first passed check), one period
+  after the state it starts from.
 """
 
 from __future__ import annotations
@@ -24,16 +26,17 @@ from typing import Any
 import numpy as np
 
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
-from cogblocks.sim.params import finite_number, one_of
+from cogblocks.sim.params import finite_number, one_of, positive_int
 from cogblocks.sync.identification import usable_phases
-from cogblocks.sync.pacing import _MODES, NONE, PACE, PacingMotion
+from cogblocks.sync.pacing import _MODES, MEAN, NONE, PACE, PacingMotion
 from cogblocks.sync.staged import StagedPrediction
 
 __all__ = ["MARGIN", "GuardedPacingMotion", "phase_error"]
 
-#: Default ``margin``: twice :class:`PacingMotion`'s. Tuned on the validation split (38 groups where the circular mean
-#: changes r, cut to 60 s): the same mean gain, and it removes the small losses (worst −0.54 % → 0.00 %).
-MARGIN = 0.01
+#: Default ``margin``: four times :class:`PacingMotion`'s. Re-tuned on the validation split (the shortest groups of
+#: ``random_groups(600, "validation", 0)``, docs/pop-sync.md "Guarded pacing motion computer"): 0.01 let predicted
+#: gains of ~0.012 in mean r act on a 15-participant ring near locking that lost 1.1 %; 0.02 leaves it unaltered.
+MARGIN = 0.02
 
 
 def phase_error(predicted: np.ndarray, observed: np.ndarray) -> float:
@@ -56,6 +59,13 @@ class GuardedPacingMotion(PacingMotion):
         to be followed.
     fallback : {"none", "mean"}
         What the block does for the next period when the last check failed.
+    first_period : int, optional
+        Ticks of a decision period until a check has passed (half of ``decide_every`` by default, at least 1).
+    commit : int
+        Periods for which an alteration, once chosen, is kept (while the checks pass) before it is chosen
+        again; 0 (the default): every decision chooses afresh. A prediction scores a candidate held over the
+        whole horizon; re-choosing every period can stop a pacing plan half-way, where the group is left
+        worse off than unaltered (docs/pop-sync.md). Not the default: validated on too few groups.
 
     Notes
     -----
@@ -76,12 +86,21 @@ class GuardedPacingMotion(PacingMotion):
         *,
         tolerance: float = 0.3,
         fallback: str = "none",
+        first_period: int | None = None,
+        commit: int = 0,
         **pacing: Any,
     ) -> None:
         super().__init__(n, assisted, **{"margin": MARGIN} | pacing)
         self.tolerance = finite_number(self, "tolerance", tolerance, low=0.0)
         self.fallback = _MODES[one_of(self, "fallback", fallback, tuple(_MODES))]
+        default_first = max(1, self.decide_every // 2)
+        self.first_period = positive_int(self, "first_period", default_first if first_period is None else first_period)
+        self.commit = positive_int(self, "commit", commit, minimum=0)
         self.add_state("error", math.inf)  # the last check's error (inf: none passed yet)
+        self.add_state("passed", False)  # a check has passed since the last reset
+        self.add_state("next_due", 0)  # the tick the next decision is due at
+        self.add_state("running", self.first_period)  # ticks of the period of the decision in progress
+        self.add_state("held", 0)  # periods the alteration in progress has been applied since it was chosen
         self.job: StagedPrediction | None = None
         self.job_tick = -1  # the tick the job's lead ends at
         self.job_omega = np.zeros(n)  # the frequencies the job's pacing grid was built on
@@ -91,7 +110,7 @@ class GuardedPacingMotion(PacingMotion):
     def max_evaluations(self) -> int:
         """Bound on the candidate-steps of one tick: Euler steps per tick × the most candidates."""
         candidates = 1 + len(self.gates) + 2 * (self.frequencies + 1)
-        return math.ceil(2 * self.max_steps / self.decide_every) * candidates
+        return math.ceil(2 * self.max_steps / min(self.decide_every, self.first_period)) * candidates
 
     def reset(self) -> None:
         super().reset()
@@ -100,7 +119,7 @@ class GuardedPacingMotion(PacingMotion):
     def update(self, k: int) -> None:
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
         dt = self.dt * self.every
-        if k % self.decide_every == 0:
+        if k >= self.next_due:
             self.due = True
         jumped = False
         if not (usable_phases(theta) and math.isfinite(lam)):
@@ -116,11 +135,15 @@ class GuardedPacingMotion(PacingMotion):
                     ref = self._reference(theta) - (dt * self.value if jumped else 0.0)
                 self.job = None
                 model = self.model()
-                if model is not None:
+                if model is None:  # not trusted yet: try again next tick
+                    self.next_due = k + 1
+                else:
+                    self.running = self.decide_every if self.passed else self.first_period
                     self._start(theta, lam, ref, model, k, dt)
+                    self.next_due = k + self.running
                 self.due = False
         if self.job is not None and not self.job.done:
-            self.job.advance(math.ceil(self.job.total_steps / self.decide_every))
+            self.job.advance(math.ceil(self.job.total_steps / self.running))
         if self.mode == PACE and not jumped:
             self.theta_ref_now = wrap_angle(self.theta_ref_now + dt * self.value)
 
@@ -130,7 +153,7 @@ class GuardedPacingMotion(PacingMotion):
         """Start the decision that applies one period from now, from this tick's state."""
         omega, gain = model
         step = self._stable_step(gain)
-        lead_time = self.decide_every * dt
+        lead_time = self.running * dt
         lead_steps = min(self.max_steps, max(1, math.ceil(lead_time / step - 1e-9)))
         value = self.value if self.mode != NONE else 0.0
         self.job = StagedPrediction(
@@ -147,7 +170,7 @@ class GuardedPacingMotion(PacingMotion):
             step=step,
             steps=min(self.max_steps, max(1, round(self.horizon / step))),
         )
-        self.job_tick = k + self.decide_every
+        self.job_tick = k + self.running
         self.job_omega = omega
 
     def _model_reference(self, theta: np.ndarray, ref: float, elapsed: float) -> float:
@@ -162,13 +185,15 @@ class GuardedPacingMotion(PacingMotion):
         if k == self.job_tick:
             self.error = phase_error(job.lead_theta, theta)
             self.errors.append(self.error)
+            self.passed = self.passed or self.error <= self.tolerance
         kinds, values, _ = job.candidates
         scores = job.scores
         if self.error > self.tolerance:
             mode, value = self.fallback, math.pi
+            self.held = self.commit  # no commitment to the fallback
             self.choices.append(-1)
         else:
-            best = self._best(kinds, scores)
+            best = self._committed(kinds, scores)
             mode, value = int(kinds[best]), float(values[best])
             self.choices.append(mode)
             if mode == PACE:
@@ -182,3 +207,19 @@ class GuardedPacingMotion(PacingMotion):
                 return True
         self.mode, self.value = mode, value
         return False
+
+    def _committed(self, kinds: np.ndarray, scores: np.ndarray) -> int:
+        """The alteration in progress while it is committed (``commit``), otherwise the choice with the margins."""
+        if self.mode == NONE:
+            current = 0
+        elif self.mode == MEAN:
+            current = 1 + int(np.argmin(np.abs(self.gates - self.value)))
+        else:  # the first pace candidate continues the pace in progress
+            current = 1 + len(self.gates)
+        if self.mode != NONE and self.held < self.commit:
+            self.held += 1
+            return current
+        best = self._best(kinds, scores)
+        if best != current:
+            self.held = 1
+        return best

@@ -263,6 +263,8 @@ CASES = [
     case("GuardedPacingMotion", "assisted", 5, "[0, 2]"),
     case("GuardedPacingMotion", "tolerance", -0.1, "[0.0, inf)"),
     case("GuardedPacingMotion", "fallback", "pace", "one of"),
+    case("GuardedPacingMotion", "first_period", 0, "integer >= 1"),
+    case("GuardedPacingMotion", "commit", -1, "integer >= 0"),
     case("GroupIdentifier", "n", 1, "integer >= 2"),
     case("GroupIdentifier", "adjacency", [[1.0]], "shape (3, 3)", given="(1, 1)"),
     case("GroupIdentifier", "assisted", 5, "[0, 2]"),

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
 from cogblocks.diagrams.sync import MOTIONS, pop_sync
 from cogblocks.sim import Diagram, Simulator
 from cogblocks.sync import GuardedPacingMotion
@@ -87,7 +87,9 @@ def _closed_loop(group: SyncGroup, block: GuardedPacingMotion, seconds: float, r
 
 def test_work_per_tick_is_bounded_and_a_decision_applies_one_period_after_it_starts():
     group = TABLE2[1]
-    block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, decide_every=50, horizon=5.0)
+    block = GuardedPacingMotion(
+        group.n, group.assisted, adjacency=group.graph, decide_every=50, first_period=50, horizon=5.0
+    )
     record: list[int] = []
     _closed_loop(group, block, 4.0, record)
     # 5 s of 50 ms steps and a 0.5 s lead of 10 steps, over 50 ticks: 3 Euler steps a tick, ≤ 38 candidates
@@ -97,6 +99,75 @@ def test_work_per_tick_is_bounded_and_a_decision_applies_one_period_after_it_sta
     # the model is trusted after 100 increments (tick 100); decisions start at 100, 150, … and apply 50 ticks later
     assert len(block.errors) == len(block.choices) == (400 - 150) // 50 + 1
     assert max(block.errors) < block.tolerance  # a noiseless group of the identified kind: the model predicts well
+
+
+def _start_ticks(block: GuardedPacingMotion) -> list[int]:
+    """``block`` records the tick of every decision it starts in the returned list."""
+    ticks: list[int] = []
+    start = block._start
+
+    def recorded(theta, lam, ref, model, k, dt) -> None:
+        ticks.append(k)
+        start(theta, lam, ref, model, k, dt)
+
+    block._start = recorded
+    return ticks
+
+
+def test_the_first_decision_comes_after_half_a_period_then_decisions_come_every_period():
+    """Until a check has passed, periods are ``first_period`` ticks: trusted at tick 100, the first decision is checked
+    and applied at 150 (not 200), and later ones every 100 ticks; before 150 the participant is left unaltered."""
+    group = TABLE2[1]
+    block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph)
+    assert block.first_period == 50 and block.decide_every == 100
+    starts, record = _start_ticks(block), []
+    trace = _closed_loop(group, block, 4.0, record)
+    assert starts == [100, 150, 250, 350]
+    assert len(block.errors) == 3 and max(block.errors) < block.tolerance
+    assert block.choices[0] == PACE  # group 1 is paced from the first decision on
+    ref, l0 = trace["ref"], trace["l0"]
+    np.testing.assert_array_equal(ref[:150], l0[:150])  # start="none": θ_ref = θ_L0 until the first check
+    assert np.abs(np.angle(np.exp(1j * (ref[150:] - l0[150:])))).max() > 0.1
+    # the first period's decision is spread over 50 ticks: more steps a tick, within max_evaluations
+    assert max(record) <= block.max_evaluations
+    assert max(record[100:150]) > max(record[150:])
+
+
+def test_periods_stay_short_while_every_check_fails():
+    """No check passes (frequencies that jump every 0.3 s): every decision period stays ``first_period`` ticks."""
+    rng = np.random.default_rng(5)
+    n, ticks = 4, 400
+    rates = np.repeat(rng.uniform(-6.0, 6.0, (ticks // 30 + 1, n)), 30, axis=0)[:ticks]
+    theta = np.mod(np.cumsum(rates * 0.01, axis=0), 2 * np.pi)
+    block = GuardedPacingMotion(n, 0, first_period=30, horizon=2.0, min_excitation=0.0)
+    starts = _start_ticks(block)
+    _run_inputs(block, theta, np.full(ticks, 1.0))
+    assert starts == list(range(100, ticks, 30))
+    assert min(block.errors) > block.tolerance and set(block.choices) == {-1}
+
+
+def test_a_committed_pace_is_kept_for_commit_periods():
+    """With ``commit``, a pace once chosen is continued (same frequency, θ_ref = anchor + ω t without a jump) for
+    ``commit`` periods; without it, the same group's pace is stopped half-way (validation group 429)."""
+    group = random_groups(430, "validation", 0)[429]
+    plain = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph)
+    _closed_loop(group, plain, group.duration, [])
+    assert plain.choices[:4] == [PACE] * 4 and plain.choices[4] == NONE
+    kept = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, commit=10)
+    values: list[float] = []
+    finish = kept._finish
+
+    def recorded(theta, ref, k, dt) -> bool:
+        jumped = finish(theta, ref, k, dt)
+        values.append(kept.value)
+        return jumped
+
+    kept._finish = recorded
+    trace = _closed_loop(group, kept, group.duration, [])
+    assert kept.choices == [PACE] * 10 and len(set(values)) == 1
+    # from the first decision (tick 150) on, θ_ref advances by exactly ω dt a tick: one plan, never re-anchored
+    step = np.angle(np.exp(1j * np.diff(trace["ref"][151:])))
+    np.testing.assert_allclose(step, values[0] * 0.01, atol=1e-9)
 
 
 def _run_inputs(block: GuardedPacingMotion, theta: np.ndarray, lam: np.ndarray) -> np.ndarray:
@@ -116,7 +187,9 @@ def test_the_guard_falls_back_when_the_model_predicts_badly():
     rates = np.repeat(rng.uniform(-6.0, 6.0, (ticks // 30 + 1, n)), 30, axis=0)[:ticks]
     theta = np.mod(np.cumsum(rates * 0.01, axis=0), 2 * np.pi)
     lam = np.full(ticks, 1.0)
-    block = GuardedPacingMotion(n, 0, decide_every=50, horizon=2.0, fallback="mean", margin=0.0, min_excitation=0.0)
+    block = GuardedPacingMotion(
+        n, 0, decide_every=50, first_period=50, horizon=2.0, fallback="mean", margin=0.0, min_excitation=0.0
+    )
     ref = _run_inputs(block, theta, lam)
     assert len(block.errors) >= 8 and min(block.errors) > block.tolerance
     assert set(block.choices) == {-1}
@@ -146,7 +219,9 @@ def test_bad_data_policy():
     assert ref[20] == ref[19] and ref[70] == ref[69]
     # 159 increments less those ending at or starting from a bad phase (19→20, 20→21, 69→70, 70→71) or λ (90, 91)
     assert block.count == 159 - 6
-    assert len(block.errors) == 2  # decisions started at 50 and 100 (the one due at 150 has no finished job yet)
+    # trusted at tick 10: decisions started at 10, 35 (one first_period of 25 ticks later: the first check passed), 85
+    # and 135 (the one started at 135 ends at 185, after the run)
+    assert len(block.errors) == 3
 
 
 def test_guard_is_a_policy_of_the_held_out_runner_and_checks_its_parameters():
@@ -158,3 +233,7 @@ def test_guard_is_a_policy_of_the_held_out_runner_and_checks_its_parameters():
         GuardedPacingMotion(3, 0, fallback="pace")
     with pytest.raises(ValueError, match="tolerance must be"):
         GuardedPacingMotion(3, 0, tolerance=-1.0)
+    with pytest.raises(ValueError, match="first_period must be"):
+        GuardedPacingMotion(3, 0, first_period=0)
+    with pytest.raises(ValueError, match="commit must be"):
+        GuardedPacingMotion(3, 0, commit=-1)
