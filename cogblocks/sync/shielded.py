@@ -36,10 +36,11 @@ from cogblocks.sync.pacing import NONE, PACE, PacingMotion, euler_step, margin_c
 
 __all__ = ["DECIDE_EVERY", "FOLLOW", "HORIZON", "MARGIN", "PolicyRollout", "ShieldedMotion"]
 
-#: Defaults, chosen on the validation split (docs/pop-sync.md, "DQN with a shield"): a decision every second,
-#: on a 3 s prediction, and a predicted gain of 0.005 in mean r (PacingMotion's margin) needed to follow the policy.
+#: Defaults: a decision every second on a 1 s prediction (one predicted tick per tick: the cost of a policy evaluation
+#: and an Euler step, twice the unshielded DQN's), and a predicted gain of 0.005 in mean r (PacingMotion's margin)
+#: needed to follow the policy. Fixed before the validation run (docs/pop-sync.md, "DQN behind a shield").
 DECIDE_EVERY = 100
-HORIZON = 3.0
+HORIZON = 1.0
 MARGIN = 0.005
 
 #: Mode of a :class:`ShieldedMotion` that emits its policy's reference (the other mode is ``NONE``).
