@@ -38,10 +38,16 @@ def _l3_motion(group: SyncGroup, policy: Any) -> Block:
     )
 
 
-def _dqn_motion(group: SyncGroup) -> Block:
+def _dqn_raw_motion(group: SyncGroup) -> Block:
     from cogblocks.sync import DQNPolicy
 
     return _l3_motion(group, DQNPolicy.default())
+
+
+def _dqn_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import ShieldedMotion
+
+    return ShieldedMotion(_dqn_raw_motion(group), adjacency=group.graph)
 
 
 def _lookahead_motion(group: SyncGroup) -> Block:
@@ -69,7 +75,9 @@ def _guard_motion(group: SyncGroup) -> Block:
 
 
 #: Motion computers available by name: each builds a fresh block for a group.
-#: ``dqn`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --randomised --seed 0``),
+#: ``dqn_raw`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --randomised --seed 0``),
+#: ``dqn`` the same network behind a shield (:class:`~cogblocks.sync.shielded.ShieldedMotion`: followed only while
+#: a prediction on the group identified online says it does not lower r, else doing nothing),
 #: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
 #: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 3 s
 #: every 0.5 s with casadi on a model it identifies online, ``pace`` chooses every period between doing
@@ -78,6 +86,7 @@ def _guard_motion(group: SyncGroup) -> Block:
 #: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
+    "dqn_raw": _dqn_raw_motion,
     "guard": _guard_motion,
     "lookahead": _lookahead_motion,
     "mean": _mean_motion,

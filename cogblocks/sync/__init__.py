@@ -25,6 +25,7 @@ _LAZY = {
     "GuardedPacingMotion": "cogblocks.sync.guarded",
     "MPCMotion": "cogblocks.sync.mpc",
     "PacingMotion": "cogblocks.sync.pacing",
+    "ShieldedMotion": "cogblocks.sync.shielded",
 }
 
 __all__ = [
@@ -47,6 +48,7 @@ __all__ = [
     "MotionComputer",
     "OrderParameter",
     "PacingMotion",
+    "ShieldedMotion",
     "SyncModel",
     "check_blender",
     "lambda_report",

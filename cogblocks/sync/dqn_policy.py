@@ -20,7 +20,7 @@ from torch import nn
 
 from cogblocks.sync.motion import ACTIONS, L3Context
 
-__all__ = ["DQNPolicy", "FEATURE_SIZE", "L3QNetwork", "OBS_SIZE", "group_features"]
+__all__ = ["DQNPolicy", "FEATURE_SIZE", "L3QNetwork", "NumpyDQNPolicy", "OBS_SIZE", "group_features"]
 
 OBS_SIZE = 3
 FEATURE_SIZE = 10
@@ -145,3 +145,36 @@ class DQNPolicy:
         with torch.no_grad():
             values = self.network(torch.as_tensor(self.observation(context), dtype=torch.float32))
         return int(values.argmax())
+
+    def predictor(self) -> NumpyDQNPolicy:
+        """A copy for predictions that run the policy ahead many times per tick (the network in float64 NumPy).
+
+        Several times cheaper per call than torch on one observation, it chooses the same action except where
+        two action values are within rounding of each other.
+        """
+        return NumpyDQNPolicy(self)
+
+
+class NumpyDQNPolicy(DQNPolicy):
+    """:class:`DQNPolicy` with the network's layers evaluated in float64 NumPy (see :meth:`DQNPolicy.predictor`).
+
+    A prediction that runs the policy ahead tick by tick (:class:`~cogblocks.sync.shielded.ShieldedMotion`) asks
+    it hundreds of times per decision, where torch's per-call overhead on one observation dominates.
+    """
+
+    def __init__(self, policy: DQNPolicy) -> None:
+        super().__init__(policy.network)
+        linear = [layer for layer in self.network.layers if isinstance(layer, nn.Linear)]
+        self.weights = [layer.weight.detach().double().numpy().T.copy() for layer in linear]
+        self.biases = [layer.bias.detach().double().numpy().copy() for layer in linear]
+        self.omega_init = policy.omega_init
+
+    def act(self, context: L3Context) -> int:
+        """Action with the highest value for this tick's observation."""
+        x = self.observation(context)
+        last = len(self.weights) - 1
+        for i, (weight, bias) in enumerate(zip(self.weights, self.biases, strict=True)):
+            x = x @ weight + bias
+            if i < last:
+                x = np.maximum(x, 0.0)
+        return int(np.argmax(x))

@@ -227,10 +227,26 @@ class MotionComputer(_MotionPorts):
             # no trustworthy context: keep the frequency, coast on the oscillator's own rate
             self.theta_l3 = wrap_angle(self.theta_l3 + self.dt * self.omega_prev)
             return
-        obs = l3_observation(self.theta_l3, theta[self.others], self.omega_prev)
-        context = L3Context(k, obs, theta.copy(), self.theta_l3, lam, self.omega_prev, self.assisted)
-        action = self.policy.act(context)
-        omega = min(max(self.omega_prev + ACTIONS[action], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
-        pull = float(np.dot(self.coupling, np.sin(theta - self.theta_l3)))
-        self.theta_l3 = wrap_angle(self.theta_l3 + self.dt * (omega + self.gain * pull))
-        self.omega_prev = omega
+        self.theta_l3, self.omega_prev = self.step_oscillator(k, theta, lam, self.theta_l3, self.omega_prev, self.dt)
+
+    def step_oscillator(
+        self,
+        k: int,
+        theta: np.ndarray,
+        lam: float,
+        theta_l3: float,
+        omega_prev: float,
+        dt: float,
+        policy: L3Policy | None = None,
+    ) -> tuple[float, float]:
+        """One tick (``dt`` s) of the virtual oscillator from ``(θ_L3, ω_prev)`` on finite ``theta`` and ``lam``.
+
+        Asks ``policy`` (the block's by default) for its action and returns the next ``(θ_L3, ω_L3)``; the
+        block's state is untouched, so a prediction can run the oscillator ahead on phases of its own.
+        """
+        obs = l3_observation(theta_l3, theta[self.others], omega_prev)
+        context = L3Context(k, obs, theta.copy(), theta_l3, lam, omega_prev, self.assisted)
+        action = (self.policy if policy is None else policy).act(context)
+        omega = min(max(omega_prev + ACTIONS[action], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
+        pull = float(np.dot(self.coupling, np.sin(theta - theta_l3)))
+        return wrap_angle(theta_l3 + dt * (omega + self.gain * pull)), omega

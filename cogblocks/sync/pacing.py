@@ -36,7 +36,7 @@ from cogblocks.sync.identification import KuramotoRLS, usable_phases
 from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.motion import OMEGA_L3_LIMIT, _MotionPorts
 
-__all__ = ["MEAN", "NONE", "PACE", "PacingMotion", "euler_step", "predicted_order"]
+__all__ = ["MEAN", "NONE", "PACE", "PacingMotion", "euler_step", "margin_choice", "predicted_order"]
 
 #: Candidate kinds: leave θ_L0 unaltered, follow the others' circular mean, pace at a constant frequency.
 NONE, MEAN, PACE = 0, 1, 2
@@ -136,6 +136,20 @@ def euler_step(
     return theta + step * (omega + gain * pull), lam, r
 
 
+def margin_choice(kinds: np.ndarray, scores: np.ndarray, current: int, margin: float, switch_margin: float) -> int:
+    """The best-scored candidate, kept only if it beats the current one by ``switch_margin`` and *none* by ``margin``.
+
+    ``kinds[0]`` must be :data:`NONE`: the result is 0 or a candidate whose predicted mean r is at least
+    ``scores[0] + margin``, so a candidate predicted to lower r against doing nothing is never chosen.
+    """
+    best = int(np.argmax(scores))
+    if scores[best] < scores[current] + switch_margin:
+        best = current
+    if kinds[best] != NONE and scores[best] < scores[0] + margin:
+        best = 0
+    return best
+
+
 class PacingMotion(_MotionPorts):
     """Chooses, every period, the reference the identified group model predicts best over a long horizon.
 
@@ -216,7 +230,7 @@ class PacingMotion(_MotionPorts):
         coupling = Coupling(checked_graph(self, adjacency, n), n, sparse=False)
         self.adjacency = np.asarray(coupling.matrix, dtype=float)
         if blender is not None and not isinstance(blender, BlenderParams):
-            raise ValueError(f"PacingMotion: blender must be a BlenderParams, got {type(blender).__name__}")
+            raise ValueError(f"{type(self).__name__}: blender must be a BlenderParams, got {type(blender).__name__}")
         self.blender = blender or BlenderParams()
         self.decide_every = positive_int(self, "decide_every", decide_every)
         self.horizon = finite_number(self, "horizon", horizon, low=0.0, low_open=True)
@@ -355,16 +369,11 @@ class PacingMotion(_MotionPorts):
 
     def _best(self, kinds: np.ndarray, scores: np.ndarray) -> int:
         """The candidate chosen with the margins: over *none* (``margin``) and over the current choice."""
-        best = int(np.argmax(scores))
         if self.mode == MEAN:
             current = 1 + int(np.argmin(np.abs(self.gates - self.value)))
         else:  # pacing: the first pace candidate continues it
             current = 0 if self.mode == NONE else 1 + len(self.gates)
-        if scores[best] < scores[current] + self.switch_margin:
-            best = current
-        if kinds[best] != NONE and scores[best] < scores[0] + self.margin:
-            best = 0
-        return best
+        return margin_choice(kinds, scores, current, self.margin, self.switch_margin)
 
     def _decide(
         self, theta: np.ndarray, seen: np.ndarray, lam: float, ref: float, model: tuple[np.ndarray, float]

@@ -191,7 +191,7 @@ def test_diagram_with_dqn_policy_matches_the_training_environment():
     from cogblocks.training.sync_env import evaluate
 
     env_result = evaluate(DQNPolicy.default(), TABLE2[1])
-    r = Simulator(pop_sync(1, motion="dqn")).run(n_steps=1001)["r"]
+    r = Simulator(pop_sync(1, motion="dqn_raw")).run(n_steps=1001)["r"]
     assert float(r.mean()) == pytest.approx(env_result["r_with"], abs=1e-9)
 
 

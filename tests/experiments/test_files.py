@@ -160,7 +160,7 @@ class HoldPolicy:
         return 5
 
 
-@pytest.mark.parametrize("motion", ["dqn", "lookahead"])
+@pytest.mark.parametrize("motion", ["dqn_raw", "lookahead"])
 def test_l3_policies_are_stored(tmp_path, motion):
     loaded = load_diagram(save_diagram(pop_sync(1, motion=motion), tmp_path / "sync.json"))
     assert type(loaded["l2.motion"].policy) is type(pop_sync(1, motion=motion)["l2.motion"].policy)

@@ -806,6 +806,33 @@ def _usable(ins) -> bool:
 
 register_mpc()
 
+
+def register_shielded() -> None:
+    from cogblocks.sync import ShieldedMotion
+    from cogblocks.sync.shielded import FOLLOW
+
+    # "doing nothing, θ_ref holds on a bad tick; following, it is the oscillator's phase (which coasts)"
+    register(
+        ShieldedMotion,
+        motion_computer().flatmap(
+            lambda m: st.builds(
+                ShieldedMotion,
+                st.just(m),
+                decide_every=st.integers(1, 5),
+                horizon=st.sampled_from([0.01, 0.05]),
+                margin=st.sampled_from([0.0, 0.005]),
+                min_ticks=st.integers(1, 3),
+                min_excitation=st.just(0.0),
+            )
+        ),
+        lambda b: {"theta": phase((b.n,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
+        ["theta", "lam"],
+        Policy(holds={"theta_ref": lambda b, ins, seen: b.mode != FOLLOW and not _usable(ins)}),
+    )
+
+
+register_shielded()
+
 # -- sensor streams and L1 ----------------------------------------------------------------------------------
 
 POSITION_SHAPES = st.sampled_from([(), (1,), (3,)])

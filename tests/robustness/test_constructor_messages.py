@@ -63,6 +63,12 @@ def _mean_motion():
     return MeanPhaseMotion(3, 1)
 
 
+def _shielded_motion():
+    from cogblocks.sync import MotionComputer
+
+    return MotionComputer(_Policy(), n=3, assisted=0, gain=1.0, omega_init=0.0)
+
+
 def _discrete_system(dt=0.01):
     import control
 
@@ -92,6 +98,7 @@ BASES: dict[str, Callable[[], dict[str, Any]]] = {
     "GroupIdentifier": lambda: {"n": 3},
     "PacingMotion": lambda: {"n": 3, "assisted": 0},
     "GuardedPacingMotion": lambda: {"n": 3, "assisted": 0},
+    "ShieldedMotion": lambda: {"motion": _shielded_motion()},
     "ReferenceCustomizer": lambda: {"reference": CURVE},
     "PhaseEstimator3D": lambda: {"reference": CURVE},
     "PhasePositionComputer": lambda: {"reference": CURVE},
@@ -265,6 +272,15 @@ CASES = [
     case("GuardedPacingMotion", "fallback", "pace", "one of"),
     case("GuardedPacingMotion", "first_period", 0, "integer >= 1"),
     case("GuardedPacingMotion", "commit", -1, "integer >= 0"),
+    case("ShieldedMotion", "motion", 5, "MotionComputer", given="int"),
+    case("ShieldedMotion", "adjacency", [[1.0]], "shape (3, 3)", given="(1, 1)"),
+    case("ShieldedMotion", "blender", 5, "BlenderParams", given="int"),
+    case("ShieldedMotion", "decide_every", 0, "integer >= 1"),
+    case("ShieldedMotion", "horizon", 0.0, "(0.0, inf)"),
+    case("ShieldedMotion", "margin", -0.1, "[0.0, inf)"),
+    case("ShieldedMotion", "switch_margin", math.nan, "[0.0, inf)"),
+    case("ShieldedMotion", "min_ticks", 0, "integer >= 1"),
+    case("ShieldedMotion", "min_excitation", -1.0, "[0.0, inf)"),
     case("GroupIdentifier", "n", 1, "integer >= 2"),
     case("GroupIdentifier", "adjacency", [[1.0]], "shape (3, 3)", given="(1, 1)"),
     case("GroupIdentifier", "assisted", 5, "[0, 2]"),

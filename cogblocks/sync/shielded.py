@@ -1,0 +1,267 @@
+"""A shield for a learned L3 policy: its reference is followed only while a prediction says it does not lower r.
+
+:class:`ShieldedMotion` runs an L3 motion computer (:class:`~cogblocks.sync.motion.MotionComputer`, e.g. the
+trained DQN's virtual oscillator) unchanged, every tick, and decides every period whether to emit its reference
+or to do nothing (θ_ref = θ_L0, which leaves the assisted participant's phase unaltered: the group runs as
+without L2). The decision is :class:`~cogblocks.sync.pacing.PacingMotion`'s, on a different pair of candidates:
+
+* the group is identified online from the observed phases (:meth:`PacingMotion._identify`, recursive least
+  squares on the phase increments, no oracle);
+* from the state at a period's first tick, :meth:`ShieldedMotion.advance_rollout` predicts ``horizon`` seconds
+  of the group on that model (:func:`~cogblocks.sync.pacing.euler_step`, the blender's λ in the loop) twice,
+  side by side: under the policy, whose oscillator and network are run ahead tick by tick on the predicted
+  phases as the block runs them on the observed ones, and under doing nothing;
+* the policy is followed in the next period only if its predicted mean r beats doing nothing's by ``margin``
+  (:func:`~cogblocks.sync.pacing.margin_choice`); otherwise the block does nothing.
+
+Shielding (checking a learned controller's actions against a model and overriding the unsafe ones) is a standard
+way to keep a policy's gains where the model vouches for them and nothing else: doing nothing is what cannot
+lower r. The rollout is spread over the period, ``ceil(horizon / dt / decide_every)`` ticks of prediction per
+tick, and its decision applies from the next period's first tick.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cogblocks.blocks.angles import wrap_angle
+from cogblocks.sync.identification import usable_phases
+from cogblocks.sync.model import BlenderParams
+from cogblocks.sync.motion import L3Policy, MotionComputer
+from cogblocks.sync.pacing import NONE, PACE, PacingMotion, euler_step, margin_choice
+
+__all__ = ["DECIDE_EVERY", "FOLLOW", "HORIZON", "MARGIN", "PolicyRollout", "ShieldedMotion"]
+
+#: Defaults: a decision every second on a 1 s prediction (one predicted tick per tick: the cost of a policy evaluation
+#: and an Euler step, twice the unshielded DQN's), and a predicted gain of 0.005 in mean r (PacingMotion's margin)
+#: needed to follow the policy. Fixed before the validation run (docs/pop-sync.md, "DQN behind a shield").
+DECIDE_EVERY = 100
+HORIZON = 1.0
+MARGIN = 0.005
+
+#: Mode of a :class:`ShieldedMotion` that emits its policy's reference (the other mode is ``NONE``).
+FOLLOW = 3
+#: The rollout's two rows: doing nothing, and a reference re-anchored every tick on the policy's oscillator.
+_ROWS = np.array([NONE, PACE])
+
+
+@dataclass
+class PolicyRollout:
+    """The state of one prediction: doing nothing (row 0) and following the policy (row 1), side by side.
+
+    Plain data (block state, so a snapshot of the diagram holds it); :meth:`ShieldedMotion.advance_rollout` runs it.
+
+    Attributes
+    ----------
+    theta : ndarray, shape (2, N)
+        The participants' predicted own phases of both rows.
+    lam : ndarray, shape (2,)
+        The blender's predicted λ of both rows.
+    oscillator : ndarray, shape (2,)
+        The policy's predicted ``(θ_L3, ω_prev)`` in row 1.
+    model : (ndarray, float)
+        Natural frequencies ω (rad/s) and coupling gain K the prediction runs on.
+    k : int
+        The tick the prediction starts at.
+    dt : float
+        The tick (s): the policy acts every tick, so the prediction steps by ``dt``.
+    steps : int
+        Ticks predicted; :attr:`scores` are the mean r over them.
+    done_steps : int
+        Ticks predicted so far.
+    total : ndarray, shape (2,)
+        Sum of the predicted r of both rows so far.
+    """
+
+    theta: np.ndarray
+    lam: np.ndarray
+    oscillator: np.ndarray
+    model: tuple[np.ndarray, float]
+    k: int
+    dt: float
+    steps: int
+    done_steps: int = 0
+    total: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    @classmethod
+    def start(
+        cls,
+        theta: np.ndarray,
+        lam: float,
+        oscillator: tuple[float, float],
+        model: tuple[np.ndarray, float],
+        *,
+        k: int,
+        dt: float,
+        steps: int,
+    ) -> PolicyRollout:
+        """Both rows at the phases ``theta`` and threshold ``lam`` of tick ``k``, the policy at ``(θ_L3, ω_prev)``."""
+        theta = np.tile(np.asarray(theta, dtype=float), (2, 1))
+        return cls(theta, np.full(2, float(lam)), np.array(oscillator, dtype=float), model, k, dt, steps)
+
+    @property
+    def done(self) -> bool:
+        return self.done_steps >= self.steps
+
+    @property
+    def scores(self) -> np.ndarray:
+        """Predicted mean r of (doing nothing, following the policy), once :attr:`done`."""
+        if not self.done:
+            raise RuntimeError("PolicyRollout: the scores are known only once every step is done")
+        return self.total / self.steps
+
+
+class ShieldedMotion(PacingMotion):
+    """An L3 motion computer whose reference is emitted only while a prediction says it does not lower r.
+
+    See the module docstring. Before the identified model is trusted (as :class:`PacingMotion`: ``min_ticks``
+    increments and ``min_excitation``) and until the first decision, the block does nothing.
+
+    Parameters
+    ----------
+    motion : MotionComputer
+        The shielded policy's motion computer. Its policy must choose from the context alone (the prediction asks
+        it about predicted contexts between the block's own ticks); a policy with a ``predictor()`` method (e.g.
+        :meth:`DQNPolicy.predictor() <cogblocks.sync.dqn_policy.DQNPolicy.predictor>`) is asked through the
+        cheaper copy it returns. Its oscillator runs every tick, followed or not.
+    adjacency : graph spec
+        The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a matrix), for the prediction.
+    blender : BlenderParams
+        The blender the predictions go through (the deliverable's by default).
+    decide_every : int
+        Ticks per period: a decision every period, from a prediction started one period earlier.
+    horizon : float
+        Seconds predicted per decision.
+    margin : float
+        Predicted gain in mean r over doing nothing needed to follow the policy.
+    switch_margin : float
+        Predicted gain needed to change from the current choice (doing nothing or following).
+    min_ticks, min_excitation
+        As in :class:`PacingMotion`.
+
+    Notes
+    -----
+    :attr:`predictions` (the scores ``(nothing, policy)`` of every decision) and :attr:`choices` (``NONE`` or
+    :data:`FOLLOW` per decision) are records since the last reset, not block state. The prediction in progress
+    (:attr:`job`) is block state.
+
+    Bad data policy: on a tick with a phase that is not finite and within one turn of [0, 2π), or a non-finite
+    λ, nothing is identified or decided (a decision due then is taken at the next good tick) and the policy is
+    not asked: its oscillator coasts at its last frequency, as in :class:`MotionComputer`; a prediction in
+    progress advances (it works on its own predicted state). When following, θ_ref is the oscillator's phase;
+    when doing nothing, θ_ref holds its last value on a tick with a bad phase. A finite λ outside the blender's
+    [λ_min, λ_max] is clipped to it for the identification and the prediction.
+    """
+
+    def __init__(
+        self,
+        motion: MotionComputer,
+        *,
+        adjacency: Any = "ring",
+        blender: BlenderParams | None = None,
+        decide_every: int = DECIDE_EVERY,
+        horizon: float = HORIZON,
+        margin: float = MARGIN,
+        switch_margin: float = 0.0,
+        min_ticks: int = 100,
+        min_excitation: float = 1.0,
+        period: float | None = None,
+    ) -> None:
+        if not isinstance(motion, MotionComputer):
+            raise ValueError(f"ShieldedMotion: motion must be a MotionComputer, got {type(motion).__name__}")
+        super().__init__(
+            motion.n,
+            motion.assisted,
+            adjacency=adjacency,
+            blender=blender,
+            decide_every=decide_every,
+            horizon=horizon,
+            margin=margin,
+            switch_margin=switch_margin,
+            start="none",
+            min_ticks=min_ticks,
+            min_excitation=min_excitation,
+            period=period,
+        )
+        self.motion = motion
+        cheaper = getattr(motion.policy, "predictor", None)
+        self.predictor: L3Policy = cheaper() if callable(cheaper) else motion.policy
+        self.add_state("theta_l3", 0.0)
+        self.add_state("omega_prev", motion.omega_init)
+        self.add_state("job", None)
+        self.predictions: list[tuple[float, float]] = []
+
+    def reset(self) -> None:
+        super().reset()
+        self.motion.reset()  # the policy's episode memory
+        if self.predictor is not self.motion.policy and hasattr(self.predictor, "reset"):
+            self.predictor.reset(self.motion.omega_init)
+        self.predictions = []
+
+    def output(self, k: int) -> None:
+        if self.mode == FOLLOW:
+            self.theta_ref.value[...] = self.theta_l3
+            return
+        theta = np.asarray(self.theta.value, dtype=float)
+        if usable_phases(theta):
+            self.theta_ref.value[...] = theta[self.assisted]
+
+    def update(self, k: int) -> None:
+        theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
+        dt = self.dt * self.every
+        if k % self.decide_every == 0:
+            self.due = True
+        if not (usable_phases(theta) and math.isfinite(lam)):
+            self.previous[...] = math.nan
+            self.theta_l3 = wrap_angle(self.theta_l3 + dt * self.omega_prev)
+        else:
+            clipped = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
+            ref = self.theta_l3 if self.mode == FOLLOW else float(theta[self.assisted])
+            self._identify(theta, clipped, ref, dt)
+            if self.due:
+                if self.job is not None and self.job.done:
+                    self._finish(self.job.scores)
+                self.job = None
+                model = self.model()
+                if model is not None:
+                    steps = max(1, round(self.horizon / dt))
+                    oscillator = (self.theta_l3, self.omega_prev)
+                    self.job = PolicyRollout.start(theta, clipped, oscillator, model, k=k, dt=dt, steps=steps)
+                self.due = False
+            self.theta_l3, self.omega_prev = self.motion.step_oscillator(
+                k, theta, lam, self.theta_l3, self.omega_prev, dt
+            )
+        if self.job is not None and not self.job.done:
+            self.advance_rollout(self.job, math.ceil(self.job.steps / self.decide_every))
+
+    def advance_rollout(self, job: PolicyRollout, budget: int) -> None:
+        """Predict at most ``budget`` more ticks of ``job`` (stopping when it is done).
+
+        Row 1's reference of a tick is the oscillator's phase then; the policy (:attr:`predictor`) acts on the
+        phases and λ of row 1, and the oscillator moves as :meth:`MotionComputer.step_oscillator` moves it.
+        """
+        for _ in range(budget):
+            if job.done:
+                return
+            theta_l3, omega_prev = job.oscillator
+            rows = (_ROWS, np.zeros(2), np.array([0.0, theta_l3]))
+            following = np.mod(job.theta[1], 2.0 * math.pi)
+            job.oscillator[:] = self.motion.step_oscillator(
+                job.k + job.done_steps, following, float(job.lam[1]), theta_l3, omega_prev, job.dt, self.predictor
+            )
+            job.theta, job.lam, r = euler_step(
+                job.theta, job.lam, job.model, self.adjacency, self.assisted, self.blender, rows, 0.0, job.dt
+            )
+            job.total += r
+            job.done_steps += 1
+
+    def _finish(self, scores: np.ndarray) -> None:
+        """Choose between doing nothing and following for the next period, from a finished prediction."""
+        best = margin_choice(_ROWS, scores, 0 if self.mode == NONE else 1, self.margin, self.switch_margin)
+        self.mode = FOLLOW if best == 1 else NONE
+        self.predictions.append((float(scores[0]), float(scores[1])))
+        self.choices.append(self.mode)

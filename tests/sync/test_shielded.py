@@ -1,0 +1,178 @@
+"""The shielded L3 motion computer (ShieldedMotion): its prediction, its choice, what it emits and its bad data."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
+from cogblocks.diagrams.sync import MOTIONS, pop_sync
+from cogblocks.sim import Diagram, Simulator
+from cogblocks.sync import DQNPolicy, MotionComputer, ShieldedMotion
+from cogblocks.sync.dqn_policy import NumpyDQNPolicy
+from cogblocks.sync.model import SyncModel, order_parameter
+from cogblocks.sync.motion import ACTIONS, OMEGA_L3_LIMIT, L3Context, l3_observation
+from cogblocks.sync.pacing import NONE, margin_choice
+from cogblocks.sync.shielded import FOLLOW, PolicyRollout
+
+
+class SteerPolicy:
+    """A memoryless policy of the test's: speeds the oscillator up while it trails participant 0, else slows it."""
+
+    def reset(self, omega_init: float) -> None:
+        pass
+
+    def act(self, context: L3Context) -> int:
+        return 8 if math.sin(context.theta[0] - context.theta_l3) > 0.0 else 3
+
+
+def _motion(policy, n: int, assisted: int, gain: float, adjacency) -> MotionComputer:
+    return MotionComputer(policy, n=n, assisted=assisted, gain=gain, omega_init=2.0, adjacency=adjacency)
+
+
+def test_the_prediction_is_the_closed_loop_of_the_policy_and_of_doing_nothing_on_the_model():
+    """Both rows of a rollout against an independent closed loop: SyncModel's blender and group, tick by tick."""
+    rng = np.random.default_rng(4)
+    n, assisted, gain = 5, 2, 0.9
+    a = rng.uniform(0.0, 1.5, (n, n)) * (rng.random((n, n)) < 0.7)  # weighted, directed
+    np.fill_diagonal(a, 0.0)
+    omega, theta, lam = rng.uniform(1.0, 4.0, n), rng.uniform(0, 2 * np.pi, n), 1.2
+    shield = ShieldedMotion(_motion(SteerPolicy(), n, assisted, gain, a), adjacency=a)
+    job = PolicyRollout.start(theta, lam, (0.4, 2.5), (omega, gain), k=0, dt=0.01, steps=250)
+    for budget in (1, 7, 1000):  # any chunks
+        shield.advance_rollout(job, budget)
+    model = SyncModel(omega, gain, a, assisted)
+    means = []
+    for follow in (False, True):
+        th, l3, w, la, total = theta.copy(), 0.4, 2.5, np.array(lam), 0.0
+        for k in range(250):
+            reference = l3 if follow else th[assisted]
+            seen, _, la_next = model.blend(th, np.array(reference), la)
+            total += float(order_parameter(seen))
+            context = L3Context(k, l3_observation(l3, th[np.arange(n) != assisted], w), th, l3, float(la), w, assisted)
+            w = min(max(w + ACTIONS[SteerPolicy().act(context)], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
+            th, l3_next = model.advance(th, seen, np.array(l3), np.array(w))
+            l3, la = float(l3_next), la_next
+        means.append(total / 250)
+    np.testing.assert_allclose(job.scores, means, rtol=0, atol=1e-10)
+    assert abs(means[1] - means[0]) > 1e-3  # the policy does change the prediction
+
+
+def test_margin_choice_never_leaves_doing_nothing_for_a_candidate_predicted_below_it_plus_the_margin():
+    rng = np.random.default_rng(0)
+    kinds = np.array([NONE, FOLLOW])
+    for _ in range(2000):
+        scores = rng.uniform(0.5, 0.52, 2)
+        current, margin, switch = int(rng.integers(2)), float(rng.uniform(0, 0.01)), float(rng.uniform(0, 0.01))
+        best = margin_choice(kinds, scores, current, margin, switch)
+        assert best == 0 or scores[1] >= scores[0] + margin
+        if scores[1] >= scores[0] + max(margin, switch):
+            assert best == 1
+
+
+def _recorded(group: SyncGroup, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    """Phases and λ of a closed loop under the circular mean, to feed a motion computer open loop."""
+    probes = {"theta": "group.theta", "lam": "l2.blender.lam"}
+    trace = Simulator(pop_sync(group, motion="mean"), probes=probes).run(n_steps=round(seconds / 0.01))
+    return trace["theta"], trace["lam"]
+
+
+def _run(block, theta: np.ndarray, lam: np.ndarray, record: list | None = None) -> np.ndarray:
+    d = Diagram()
+    m = d.add("m", block)
+    d.expose_input("theta", m.theta)
+    d.expose_input("lam", m.lam)
+    if record is not None:
+        update = block.update
+
+        def recording(k: int) -> None:
+            update(k)
+            record.append(block.mode)  # the mode of tick k + 1's output
+
+        block.update = recording
+    return Simulator(d, probes={"ref": "m.theta_ref"}).run(n_steps=len(theta), inputs={"theta": theta, "lam": lam})[
+        "ref"
+    ]
+
+
+def test_it_emits_the_policys_reference_or_the_participants_own_phase_as_its_prediction_says():
+    """Open loop on recorded phases: every tick's θ_ref is the unshielded motion computer's (following) or θ_L0
+    (doing nothing); it follows only after a prediction of the policy at least ``margin`` above doing nothing."""
+    group = random_groups(12, "train", 0)[11]
+    theta, lam = _recorded(group, 12.0)
+    raw = _run(MOTIONS["dqn_raw"](group), theta, lam)
+    shield = ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, decide_every=50, horizon=1.0)
+    modes: list[int] = []
+    ref = _run(shield, theta, lam, modes)
+    following = np.r_[False, np.array(modes[:-1]) == FOLLOW]
+    np.testing.assert_array_equal(ref[following], raw[following])
+    np.testing.assert_array_equal(ref[~following], theta[~following, group.assisted])
+    predictions = np.array(shield.predictions)
+    chosen = np.array(shield.choices) == FOLLOW
+    assert chosen.any() and not chosen.all()  # the group makes it do both
+    assert np.all(predictions[chosen, 1] >= predictions[chosen, 0] + shield.margin)
+    # trusted at tick 100 at the earliest, its first prediction done a period later: nothing altered before
+    assert not following[:151].any()
+
+
+def test_it_never_alters_the_participant_before_its_model_is_trusted_and_leaves_a_group_alone_when_told_to():
+    """With a margin no prediction can reach, the shielded DQN is doing nothing: r is exactly r without L2."""
+    group = TABLE2[1]
+    block = ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, margin=1.0)
+    with_shield = Simulator(pop_sync(group, motion=block)).run(n_steps=501)["r"]
+    without = Simulator(pop_sync(group, l2=False)).run(n_steps=501)["r"]
+    np.testing.assert_allclose(with_shield, without, rtol=0, atol=1e-12)
+    assert len(block.predictions) == 4 and set(block.choices) == {NONE}  # decisions at 200, 300, 400, 500
+
+
+def test_the_numpy_copy_of_the_network_chooses_as_torch_does():
+    policy = DQNPolicy.default()
+    fast = policy.predictor()
+    assert isinstance(fast, NumpyDQNPolicy)
+    rng = np.random.default_rng(2)
+    policy.reset(3.0)
+    fast.reset(3.0)
+    for _ in range(300):
+        n = int(rng.integers(3, 12))
+        theta = rng.uniform(0, 2 * np.pi, n)
+        context = L3Context(0, np.zeros(3), theta, float(rng.uniform(0, 6)), float(rng.uniform(0.5, 1.6)), 3.5, 0)
+        with torch.no_grad():
+            values = policy.network(torch.as_tensor(policy.observation(context), dtype=torch.float32)).numpy()
+        if np.sort(values)[-1] - np.sort(values)[-2] > 1e-4:
+            assert fast.act(context) == policy.act(context)
+
+
+def test_bad_data_policy():
+    """A bad tick identifies nothing and asks the policy nothing (its oscillator coasts); doing nothing, θ_ref holds."""
+    group = TABLE2[1]
+    theta, lam = _recorded(group, 3.0)
+    theta[150, 1] = np.nan
+    theta[160, 0] = 1e300
+    lam[170] = np.inf
+    shield = ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, decide_every=50, horizon=0.5)
+    modes: list[int] = []
+    ref = _run(shield, theta, lam, modes)
+    assert np.isfinite(ref).all()
+    for k in (150, 160):
+        if modes[k - 1] == NONE:
+            assert ref[k] == ref[k - 1]
+    # 299 increments less those ending at or starting from a bad phase (149→150, 150→151, 159→160, 160→161) or λ
+    assert shield.count == 299 - 6
+
+
+def test_the_shielded_network_is_the_default_dqn_and_the_network_alone_is_dqn_raw():
+    """(test_sync's Table 3 check on group 1 runs the default, shielded ``dqn``.)"""
+    block = MOTIONS["dqn"](TABLE2[1])
+    assert isinstance(block, ShieldedMotion) and isinstance(block.predictor, NumpyDQNPolicy)
+    assert isinstance(MOTIONS["dqn_raw"](TABLE2[1]), MotionComputer)
+
+
+def test_constructor_checks():
+    with pytest.raises(ValueError, match="ShieldedMotion: motion must be a MotionComputer, got str"):
+        ShieldedMotion("dqn")
+    motion = _motion(SteerPolicy(), 3, 0, 1.0, "ring")
+    with pytest.raises(ValueError, match=r"ShieldedMotion: margin must be a finite number in \[0.0, inf\), got -0.1"):
+        ShieldedMotion(motion, margin=-0.1)
