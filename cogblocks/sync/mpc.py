@@ -88,6 +88,9 @@ def _planner(
         "ipopt.mu_init": 1e-4,
         "ipopt.warm_start_bound_push": 1e-9,
         "ipopt.warm_start_mult_bound_push": 1e-9,
+        # a long backtracking line search made ~5-10 % of the chunks overrun the 10 ms tick; accepting the trial
+        # point after 4 steps removed every overrun on Table 2's groups (30 s) without lowering their r
+        "ipopt.accept_after_max_steps": 4,
     }
     solver = ca.nlpsol("mpc_sync", "ipopt", {"x": w, "p": par, "f": cost}, options)
     screen = ca.Function("mpc_cost", [w, par], [cost]).map(candidates)
