@@ -28,6 +28,7 @@ __all__ = [
     "FEAR",
     "NO_FEAR",
     "REST_SPEED",
+    "StandardisedNet",
     "UNDECIDED",
     "clip_decision",
     "load_encoder",
@@ -62,7 +63,43 @@ def clip_decision(eps_hat: Any) -> np.ndarray:
     return decision
 
 
-class EncoderNet(nn.Module):
+class StandardisedNet(nn.Module):
+    """A network whose inputs are standardised with a per-input mean and scale kept in its buffers.
+
+    The saved weights thus carry their own normalisation (:meth:`set_normalisation`); :meth:`predict`
+    evaluates the network on NumPy arrays. Subclasses define ``forward``.
+
+    Parameters
+    ----------
+    n_inputs : int
+        Number of inputs.
+    """
+
+    def __init__(self, n_inputs: int) -> None:
+        super().__init__()
+        self.register_buffer("mean", torch.zeros(n_inputs))
+        self.register_buffer("scale", torch.ones(n_inputs))
+
+    def set_normalisation(self, inputs: np.ndarray) -> None:
+        """Standardise inputs with the mean and standard deviation of ``inputs`` (n, n_inputs)."""
+        x = np.asarray(inputs, dtype=np.float64)
+        std = x.std(axis=0)
+        self.mean.copy_(torch.as_tensor(x.mean(axis=0)))
+        self.scale.copy_(torch.as_tensor(np.where(std > 0, std, 1.0)))
+
+    def predict(self, inputs: np.ndarray) -> np.ndarray:
+        """ε̂ of a NumPy array of inputs (..., n_inputs), in evaluation mode, as float64."""
+        was_training = self.training
+        self.eval()
+        try:
+            with torch.no_grad():
+                dtype = next(self.parameters()).dtype
+                return self(torch.as_tensor(np.asarray(inputs), dtype=dtype)).double().numpy()
+        finally:
+            self.train(was_training)
+
+
+class EncoderNet(StandardisedNet):
     """The approximate encoding function ε̂: 60 inputs → 200 ReLU units with dropout → 1 sigmoid.
 
     The inputs (20 resampled velocity points per axis, axis-major, mm/s) are standardised with a
@@ -80,19 +117,10 @@ class EncoderNet(nn.Module):
     """
 
     def __init__(self, n_inputs: int = 3 * N_POINTS, hidden: int = 200, dropout: float = 0.2) -> None:
-        super().__init__()
-        self.register_buffer("mean", torch.zeros(n_inputs))
-        self.register_buffer("scale", torch.ones(n_inputs))
+        super().__init__(n_inputs)
         self.hidden = nn.Linear(n_inputs, hidden)
         self.dropout = nn.Dropout(dropout)
         self.out = nn.Linear(hidden, 1)
-
-    def set_normalisation(self, inputs: np.ndarray) -> None:
-        """Standardise inputs with the mean and standard deviation of ``inputs`` (n, 60)."""
-        x = np.asarray(inputs, dtype=np.float64)
-        std = x.std(axis=0)
-        self.mean.copy_(torch.as_tensor(x.mean(axis=0)))
-        self.scale.copy_(torch.as_tensor(np.where(std > 0, std, 1.0)))
 
     def preactivation(self, x: torch.Tensor) -> torch.Tensor:
         """Hidden pre-activations, an affine function of the inputs: shape (..., hidden)."""
@@ -105,17 +133,6 @@ class EncoderNet(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """ε̂ of inputs of shape (..., 60), shape (...,)."""
         return self.head(self.preactivation(x))
-
-    def predict(self, inputs: np.ndarray) -> np.ndarray:
-        """ε̂ of a NumPy array of inputs (..., 60), in evaluation mode, as float64."""
-        was_training = self.training
-        self.eval()
-        try:
-            with torch.no_grad():
-                dtype = self.out.weight.dtype
-                return self(torch.as_tensor(np.asarray(inputs), dtype=dtype)).double().numpy()
-        finally:
-            self.train(was_training)
 
 
 def load_encoder(path: str | os.PathLike | None = None) -> EncoderNet:

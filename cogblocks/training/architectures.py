@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from cogblocks.amplification.encoder import N_POINTS, EncoderNet
+from cogblocks.amplification.encoder import N_POINTS, EncoderNet, StandardisedNet
 from cogblocks.amplification.judges import KINEMATIC_INPUTS, ensemble_inputs
 
 __all__ = ["ARCHITECTURES", "ConvEncoder", "GRUEncoder", "architecture_inputs", "as_encoder_net", "build_network"]
@@ -36,30 +36,8 @@ ARCHITECTURES = ("mlp", "cnn", "gru", "mlp_kinematic", "mlp_shape_kinematic")
 _AXES = 3
 
 
-class _Standardised(nn.Module):
-    """Per-input standardisation stored in buffers, and ``predict`` on NumPy arrays."""
-
-    def __init__(self, n_inputs: int) -> None:
-        super().__init__()
-        self.register_buffer("mean", torch.zeros(n_inputs))
-        self.register_buffer("scale", torch.ones(n_inputs))
-
-    def set_normalisation(self, inputs: np.ndarray) -> None:
-        """Standardise inputs with the mean and standard deviation of ``inputs`` (n, n_inputs)."""
-        x = np.asarray(inputs, dtype=np.float64)
-        std = x.std(axis=0)
-        self.mean.copy_(torch.as_tensor(x.mean(axis=0)))
-        self.scale.copy_(torch.as_tensor(np.where(std > 0, std, 1.0)))
-
-    def predict(self, inputs: np.ndarray) -> np.ndarray:
-        """ε̂ of a NumPy array of inputs (n, n_inputs), in evaluation mode, as float64."""
-        was_training = self.training
-        self.eval()
-        try:
-            with torch.no_grad():
-                return self(torch.as_tensor(np.asarray(inputs), dtype=torch.float32)).double().numpy()
-        finally:
-            self.train(was_training)
+class _Standardised(StandardisedNet):
+    """A standardised network that reads its inputs as a velocity profile."""
 
     def profile(self, x: torch.Tensor) -> torch.Tensor:
         """Standardised inputs as a (batch, 3 axes, 20 points) profile."""
