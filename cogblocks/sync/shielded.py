@@ -10,7 +10,9 @@ without L2). The decision is :class:`~cogblocks.sync.pacing.PacingMotion`'s, on 
 * from the state at a period's first tick, :meth:`ShieldedMotion.advance_rollout` predicts ``horizon`` seconds
   of the group on that model (:func:`~cogblocks.sync.pacing.euler_step`, the blender's λ in the loop) twice,
   side by side: under the policy, whose oscillator and network are run ahead tick by tick on the predicted
-  phases as the block runs them on the observed ones, and under doing nothing;
+  phases as the block runs them on the observed ones, and under doing nothing; with ``backup`` seconds, both
+  rows then go on doing nothing for that long (the backup policy: what the shield falls back to), so that a
+  following whose cost shows only after it has stopped is scored with that cost;
 * the policy is followed in the next period only if its predicted mean r beats doing nothing's by ``margin``
   (:func:`~cogblocks.sync.pacing.margin_choice`); otherwise the block does nothing.
 
@@ -29,24 +31,28 @@ from typing import Any
 import numpy as np
 
 from cogblocks.blocks.angles import wrap_angle
+from cogblocks.sim.params import finite_number
 from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.motion import L3Policy, MotionComputer
 from cogblocks.sync.pacing import NONE, PACE, PacingMotion, euler_step, margin_choice
 
-__all__ = ["DECIDE_EVERY", "FOLLOW", "HORIZON", "MARGIN", "PolicyRollout", "ShieldedMotion"]
+__all__ = ["BACKUP", "DECIDE_EVERY", "FOLLOW", "HORIZON", "MARGIN", "PolicyRollout", "ShieldedMotion"]
 
 #: Defaults: a decision every second on a 1 s prediction (one predicted tick per tick: the cost of a policy evaluation
 #: and an Euler step, twice the unshielded DQN's), and a predicted gain of 0.005 in mean r (PacingMotion's margin)
 #: needed to follow the policy. Fixed before the validation run (docs/pop-sync.md, "DQN behind a shield").
 DECIDE_EVERY = 100
 HORIZON = 1.0
+BACKUP = 0.0
 MARGIN = 0.005
 
 #: Mode of a :class:`ShieldedMotion` that emits its policy's reference (the other mode is ``NONE``).
 FOLLOW = 3
 #: The rollout's two rows: doing nothing, and a reference re-anchored every tick on the policy's oscillator.
 _ROWS = np.array([NONE, PACE])
+#: The backup part's rows: both doing nothing.
+_IDLE = (np.array([NONE, NONE]), np.zeros(2), np.zeros(2))
 
 
 @dataclass
@@ -70,11 +76,16 @@ class PolicyRollout:
     dt : float
         The tick (s): the policy acts every tick, so the prediction steps by ``dt``.
     steps : int
-        Ticks predicted; :attr:`scores` are the mean r over them.
-    done_steps : int
-        Ticks predicted so far.
+        Ticks predicted under the policy (row 1) or doing nothing (row 0).
+    backup_steps : int
+        Steps of ``backup_step`` seconds predicted after them, both rows doing nothing.
+    backup_step : float
+        The Euler step (s) of the backup part.
+    done_steps, done_backup : int
+        Ticks and backup steps predicted so far.
     total : ndarray, shape (2,)
-        Sum of the predicted r of both rows so far.
+        Time integral of the predicted r of both rows so far (r·dt summed); :attr:`scores` divide it by the
+        predicted time.
     """
 
     theta: np.ndarray
@@ -84,7 +95,10 @@ class PolicyRollout:
     k: int
     dt: float
     steps: int
+    backup_steps: int = 0
+    backup_step: float = 0.0
     done_steps: int = 0
+    done_backup: int = 0
     total: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
     @classmethod
@@ -98,21 +112,29 @@ class PolicyRollout:
         k: int,
         dt: float,
         steps: int,
+        backup_steps: int = 0,
+        backup_step: float = 0.0,
     ) -> PolicyRollout:
         """Both rows at the phases ``theta`` and threshold ``lam`` of tick ``k``, the policy at ``(θ_L3, ω_prev)``."""
         theta = np.tile(np.asarray(theta, dtype=float), (2, 1))
-        return cls(theta, np.full(2, float(lam)), np.array(oscillator, dtype=float), model, k, dt, steps)
+        lam = np.full(2, float(lam))
+        return cls(theta, lam, np.array(oscillator, dtype=float), model, k, dt, steps, backup_steps, backup_step)
 
     @property
-    def done(self) -> bool:
+    def following_done(self) -> bool:
+        """The part under the policy is predicted (the backup part, if any, may remain)."""
         return self.done_steps >= self.steps
 
     @property
+    def done(self) -> bool:
+        return self.following_done and self.done_backup >= self.backup_steps
+
+    @property
     def scores(self) -> np.ndarray:
-        """Predicted mean r of (doing nothing, following the policy), once :attr:`done`."""
+        """Predicted mean r over the predicted time of (doing nothing, following the policy), once :attr:`done`."""
         if not self.done:
             raise RuntimeError("PolicyRollout: the scores are known only once every step is done")
-        return self.total / self.steps
+        return self.total / (self.steps * self.dt + self.backup_steps * self.backup_step)
 
 
 class ShieldedMotion(PacingMotion):
@@ -135,7 +157,13 @@ class ShieldedMotion(PacingMotion):
     decide_every : int
         Ticks per period: a decision every period, from a prediction started one period earlier.
     horizon : float
-        Seconds predicted per decision.
+        Seconds predicted per decision under the policy (and under doing nothing).
+    backup : float
+        Seconds predicted after ``horizon``, both rows doing nothing (0: none). The prediction then asks whether
+        following the policy for ``horizon`` seconds and stopping leaves the group better off than doing nothing,
+        over ``horizon + backup`` seconds. The backup part steps by :class:`PacingMotion`'s ``step`` (shortened
+        where the identified coupling needs it), and the policy part is then predicted within the first half
+        of the period, the backup part within the second.
     margin : float
         Predicted gain in mean r over doing nothing needed to follow the policy.
     switch_margin : float
@@ -165,6 +193,7 @@ class ShieldedMotion(PacingMotion):
         blender: BlenderParams | None = None,
         decide_every: int = DECIDE_EVERY,
         horizon: float = HORIZON,
+        backup: float = BACKUP,
         margin: float = MARGIN,
         switch_margin: float = 0.0,
         min_ticks: int = 100,
@@ -187,6 +216,9 @@ class ShieldedMotion(PacingMotion):
             min_excitation=min_excitation,
             period=period,
         )
+        self.backup = finite_number(self, "backup", backup, low=0.0)
+        if self.backup > 0.0 and self.decide_every < 4:
+            raise ValueError(f"ShieldedMotion: backup needs decide_every >= 4 (two halves), got {self.decide_every}")
         self.motion = motion
         cheaper = getattr(motion.policy, "predictor", None)
         self.predictor: L3Policy = cheaper() if callable(cheaper) else motion.policy
@@ -228,24 +260,52 @@ class ShieldedMotion(PacingMotion):
                 self.job = None
                 model = self.model()
                 if model is not None:
-                    steps = max(1, round(self.horizon / dt))
-                    oscillator = (self.theta_l3, self.omega_prev)
-                    self.job = PolicyRollout.start(theta, clipped, oscillator, model, k=k, dt=dt, steps=steps)
+                    self.job = self._rollout(theta, clipped, model, k, dt)
                 self.due = False
             self.theta_l3, self.omega_prev = self.motion.step_oscillator(
                 k, theta, lam, self.theta_l3, self.omega_prev, dt
             )
         if self.job is not None and not self.job.done:
-            self.advance_rollout(self.job, math.ceil(self.job.steps / self.decide_every))
+            if self.job.backup_steps:  # each part within half a period
+                half = self.decide_every // 2
+                self.advance_rollout(
+                    self.job, math.ceil(self.job.steps / half), math.ceil(self.job.backup_steps / (half - 1))
+                )
+            else:
+                self.advance_rollout(self.job, math.ceil(self.job.steps / self.decide_every))
 
-    def advance_rollout(self, job: PolicyRollout, budget: int) -> None:
-        """Predict at most ``budget`` more ticks of ``job`` (stopping when it is done).
+    def _rollout(
+        self, theta: np.ndarray, lam: float, model: tuple[np.ndarray, float], k: int, dt: float
+    ) -> PolicyRollout:
+        """The prediction of the decision that applies one period from now, from this tick's state."""
+        steps = max(1, round(self.horizon / dt))
+        backup_step = self._stable_step(model[1])
+        backup_steps = round(self.backup / backup_step) if self.backup > 0.0 else 0
+        oscillator = (self.theta_l3, self.omega_prev)
+        return PolicyRollout.start(
+            theta, lam, oscillator, model, k=k, dt=dt, steps=steps, backup_steps=backup_steps, backup_step=backup_step
+        )
+
+    def advance_rollout(self, job: PolicyRollout, budget: int, backup_budget: int = 0) -> None:
+        """Predict at most ``budget`` more ticks of ``job``'s policy part, then ``backup_budget`` backup steps.
 
         Row 1's reference of a tick is the oscillator's phase then; the policy (:attr:`predictor`) acts on the
-        phases and λ of row 1, and the oscillator moves as :meth:`MotionComputer.step_oscillator` moves it.
+        phases and λ of row 1, and the oscillator moves as :meth:`MotionComputer.step_oscillator` moves it. In
+        the backup part both rows do nothing.
         """
+        self._advance_following(job, budget)
+        if job.following_done:
+            for _ in range(min(backup_budget, job.backup_steps - job.done_backup)):
+                job.theta, job.lam, r = euler_step(
+                    job.theta, job.lam, job.model, self.adjacency, self.assisted, self.blender, _IDLE, 0.0,
+                    job.backup_step,
+                )  # fmt: skip
+                job.total += r * job.backup_step
+                job.done_backup += 1
+
+    def _advance_following(self, job: PolicyRollout, budget: int) -> None:
         for _ in range(budget):
-            if job.done:
+            if job.following_done:
                 return
             theta_l3, omega_prev = job.oscillator
             rows = (_ROWS, np.zeros(2), np.array([0.0, theta_l3]))
@@ -256,7 +316,7 @@ class ShieldedMotion(PacingMotion):
             job.theta, job.lam, r = euler_step(
                 job.theta, job.lam, job.model, self.adjacency, self.assisted, self.blender, rows, 0.0, job.dt
             )
-            job.total += r
+            job.total += r * job.dt
             job.done_steps += 1
 
     def _finish(self, scores: np.ndarray) -> None:

@@ -61,6 +61,53 @@ def test_the_prediction_is_the_closed_loop_of_the_policy_and_of_doing_nothing_on
     assert abs(means[1] - means[0]) > 1e-3  # the policy does change the prediction
 
 
+def test_the_backup_part_scores_following_then_doing_nothing_against_doing_nothing_throughout():
+    """A rollout with a backup part against an independent loop: the policy part tick by tick as above, then both
+    rows doing nothing on SyncModel with the backup step; the scores are time averages over both parts."""
+    rng = np.random.default_rng(5)
+    n, assisted, gain = 4, 1, 0.7
+    a = rng.uniform(0.2, 1.0, (n, n))
+    np.fill_diagonal(a, 0.0)
+    omega, theta, lam = rng.uniform(1.0, 4.0, n), rng.uniform(0, 2 * np.pi, n), 1.1
+    steps, backup_steps, h = 60, 40, 0.05
+    shield = ShieldedMotion(_motion(SteerPolicy(), n, assisted, gain, a), adjacency=a, backup=2.0)
+    job = PolicyRollout.start(
+        theta, lam, (0.4, 2.5), (omega, gain), k=0, dt=0.01, steps=steps, backup_steps=backup_steps, backup_step=h
+    )
+    for budget, backup_budget in ((7, 3), (100, 0), (0, 5), (0, 1000)):  # any chunks; the backup waits its turn
+        shield.advance_rollout(job, budget, backup_budget)
+    assert job.done and job.done_backup == backup_steps
+    fine, coarse = SyncModel(omega, gain, a, assisted), SyncModel(omega, gain, a, assisted, dt=h)
+    means = []
+    for follow in (False, True):
+        th, l3, w, la, total = theta.copy(), 0.4, 2.5, np.array(lam), 0.0
+        for k in range(steps):
+            seen, _, la_next = fine.blend(th, np.array(l3 if follow else th[assisted]), la)
+            total += 0.01 * float(order_parameter(seen))
+            context = L3Context(k, l3_observation(l3, th[np.arange(n) != assisted], w), th, l3, float(la), w, assisted)
+            w = min(max(w + ACTIONS[SteerPolicy().act(context)], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
+            th, l3_next = fine.advance(th, seen, np.array(l3), np.array(w))
+            l3, la = float(l3_next), la_next
+        for _ in range(backup_steps):
+            seen, _, la = coarse.blend(th, np.array(th[assisted]), la)
+            total += h * float(order_parameter(seen))
+            th, _ = coarse.advance(th, seen, np.array(0.0), np.array(0.0))
+        means.append(total / (steps * 0.01 + backup_steps * h))
+    np.testing.assert_allclose(job.scores, means, rtol=0, atol=1e-10)
+
+
+def test_with_a_backup_every_prediction_is_done_by_the_next_decision():
+    """The policy part in the first half of the period, the backup part in the second: one decision a period."""
+    group = TABLE2[1]
+    theta, lam = _recorded(group, 6.0)
+    shield = ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, backup=9.0)
+    _run(shield, theta, lam)
+    # trusted from tick 100: the predictions started at 100, 200, 300, 400 are decided at 200, 300, 400, 500; the
+    # one started at 500 is done by the last tick, 599, the next decision's tick being 600
+    assert len(shield.predictions) == 4 and shield.job is not None and shield.job.done
+    assert shield.job.backup_steps == round(9.0 / shield._stable_step(shield.model()[1]))
+
+
 def test_margin_choice_never_leaves_doing_nothing_for_a_candidate_predicted_below_it_plus_the_margin():
     rng = np.random.default_rng(0)
     kinds = np.array([NONE, FOLLOW])
@@ -176,3 +223,7 @@ def test_constructor_checks():
     motion = _motion(SteerPolicy(), 3, 0, 1.0, "ring")
     with pytest.raises(ValueError, match=r"ShieldedMotion: margin must be a finite number in \[0.0, inf\), got -0.1"):
         ShieldedMotion(motion, margin=-0.1)
+    with pytest.raises(ValueError, match=r"ShieldedMotion: backup must be a finite number in \[0.0, inf\), got -1"):
+        ShieldedMotion(motion, backup=-1)
+    with pytest.raises(ValueError, match="ShieldedMotion: backup needs decide_every >= 4 \\(two halves\\), got 3"):
+        ShieldedMotion(motion, backup=1.0, decide_every=3)
