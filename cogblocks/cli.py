@@ -51,6 +51,8 @@ def _run_sync(args: argparse.Namespace) -> int:
 
     if args.random is not None:  # every policy unless some are named
         return _run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
+    if args.split != "test" or args.no_bound or args.max_duration is not None:
+        raise ValueError("--split, --no-bound and --max-duration apply to --random N only")
     motions = list(DEFAULT_MOTIONS) if args.policy is None else args.policy
     group = 1 if args.group is None else args.group
     if args.save_trace and len(motions) != 1:
@@ -81,6 +83,7 @@ def _run_sync(args: argparse.Namespace) -> int:
 
 
 def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
+    from cogblocks.diagrams.sync import DEFAULT_MOTION
     from cogblocks.experiments.sync_heldout import heldout_table, plot_heldout
 
     if args.domain != "phase" or args.duration is not None or args.save_trace:
@@ -89,14 +92,22 @@ def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
             "drop --domain, --duration and --save-trace (--max-duration cuts long groups)"
         )
     result = heldout_table(
-        args.random, args.seed, motions, workers=args.workers, max_duration=args.max_duration, details=bool(args.plot)
+        args.random,
+        args.seed,
+        motions,
+        workers=args.workers,
+        max_duration=args.max_duration,
+        details=bool(args.plot),
+        split=args.split,
+        bound=not args.no_bound,
     )
     groups = result.pop("groups", None)
+    held = "held-out " if args.split == "test" else ""
 
     def render(r: dict[str, Any]) -> str:
         lines = [
-            f"{r['n_groups']} held-out random groups (test split, seed {r['seed']}): change of the mean order "
-            "parameter with L2",
+            f"{r['n_groups']} {held}random groups ({args.split} split, seed {r['seed']}): change of the mean order "
+            f"parameter with L2 (pop_sync's default policy: {DEFAULT_MOTION})",
             f"  {'policy':>10}  lowered  mean %   p5 %  worst %  of bound  |θ_L2 − θ_L0| mean / max rad",
         ]
         for row in r["policies"]:
@@ -265,6 +276,15 @@ def _build_parser() -> argparse.ArgumentParser:
         help="with --random: cut every group to at most S simulated seconds (a quick look)",
     )
     sync.add_argument("--workers", type=COUNT, default=1, metavar="W", help="processes for --random (default 1)")
+    sync.add_argument(
+        "--split",
+        choices=("test", "validation", "train"),
+        default="test",
+        help="with --random: the split of the groups; choose settings on 'validation', report on 'test' (default)",
+    )
+    sync.add_argument(
+        "--no-bound", action="store_true", help="with --random: skip the bound (its fractions are then null)"
+    )
     sync.add_argument(
         "--policy",
         action="append",

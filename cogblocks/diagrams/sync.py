@@ -18,7 +18,7 @@ from cogblocks.sim.params import finite_number, one_of
 from cogblocks.sync import ArmPositions, Blender, KuramotoGroup, MeanPhaseMotion, MotionComputer, OrderParameter
 from cogblocks.sync.l2 import L2Sync
 
-__all__ = ["DEFAULT_MOTIONS", "MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync", "simulate", "sync_table"]
+__all__ = ["DEFAULT_MOTION", "DEFAULT_MOTIONS", "MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync", "simulate", "sync_table"]
 
 _LONG_RUN = 20_000  # ticks from which a run in a terminal shows a progress bar, as the Simulator's default
 
@@ -94,6 +94,9 @@ MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "pace": _pace_motion,
 }
 
+#: The motion computer :func:`pop_sync` uses when none is given (docs/pop-sync.md, "Default", says why).
+DEFAULT_MOTION = "mean"
+
 #: What ``run_sync`` and ``cogblocks run sync --group N`` run without a policy list: the Table 3
 #: comparison as first published here (``mpc`` is slower and runs when asked for by name).
 DEFAULT_MOTIONS = ("dqn", "lookahead", "mean")
@@ -135,7 +138,7 @@ def phase_sensing(
 def pop_sync(
     group: int | SyncGroup = 1,
     l2: bool = True,
-    motion: str | Block = "mean",
+    motion: str | Block = DEFAULT_MOTION,
     blender: Blender | None = None,
     *,
     domain: str = "phase",

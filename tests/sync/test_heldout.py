@@ -138,6 +138,25 @@ def test_cli_random_json(capsys):
     assert "--random" in capsys.readouterr().err
 
 
+def test_cli_random_on_the_validation_split_without_the_bound(capsys):
+    """``--split validation --no-bound``: the validation groups' own changes, no bound fraction."""
+    argv = ["run", "sync", "--random", "2", "--max-duration", "1", "--policy", "mean", "--split", "validation"]
+    assert main([*argv, "--no-bound", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    (row,) = out["policies"]
+    groups = [dataclasses.replace(g, duration=1.0) for g in random_groups(2, "validation", 0)]
+    changes = [run_sync(g, ["mean"])["results"][0]["change_pct"] for g in groups]
+    assert set(out) == {"n_groups", "seed", "policies"} and set(row) == KEYS
+    assert row["mean_change_pct"] == pytest.approx(np.mean(changes), rel=1e-12)
+    assert row["mean_bound_fraction"] is None
+    assert main([*argv, "--no-bound"]) == 0
+    assert "2 random groups (validation split, seed 0)" in capsys.readouterr().out
+    assert main(["run", "sync", "--group", "1", "--split", "validation"]) == 2
+    assert "--split, --no-bound and --max-duration apply to --random N only" in capsys.readouterr().err
+    assert main(["run", "sync", "--random", "1", "--split", "dev"]) == 2
+    assert "invalid choice: 'dev'" in capsys.readouterr().err
+
+
 def test_cli_random_plot_draws_each_groups_change_against_the_bound(capsys, tmp_path):
     """``--plot`` with ``--random``: the figure is drawn after the JSON, which keeps its keys."""
     path = tmp_path / "heldout.png"
