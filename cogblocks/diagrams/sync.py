@@ -18,7 +18,17 @@ from cogblocks.sim.params import finite_number, one_of
 from cogblocks.sync import ArmPositions, Blender, KuramotoGroup, MeanPhaseMotion, MotionComputer, OrderParameter
 from cogblocks.sync.l2 import L2Sync
 
-__all__ = ["DEFAULT_MOTION", "DEFAULT_MOTIONS", "MOTIONS", "phase_sensing", "plot_sync", "pop_sync", "run_sync", "simulate", "sync_table"]
+__all__ = [
+    "DEFAULT_MOTION",
+    "DEFAULT_MOTIONS",
+    "MOTIONS",
+    "phase_sensing",
+    "plot_sync",
+    "pop_sync",
+    "run_sync",
+    "simulate",
+    "sync_table",
+]
 
 _LONG_RUN = 20_000  # ticks from which a run in a terminal shows a progress bar, as the Simulator's default
 
