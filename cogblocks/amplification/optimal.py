@@ -28,12 +28,15 @@ import numpy as np
 from cogblocks.amplification.blending import add_blending_ports, blend
 from cogblocks.amplification.encoder import (
     CLIP_HIGH,
+    N_POINTS,
     REST_SPEED,
     EncoderNet,
     movement_length,
     resampling_matrix,
 )
 from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, _weights, _weights_key
+from cogblocks.amplification.judges import FEATURES, kinematic_features
+from cogblocks.amplification.kinematics import kinematic_member
 from cogblocks.amplification.linearised import LinearisedSolver
 from cogblocks.amplification.plan import PlanResult, equivalent_c, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
@@ -220,7 +223,13 @@ class OptimalBlender(Block):
         self.solver = one_of(self, "solver", solver, ("sqpmethod", "ipopt", "linearised"))
         self.sharpness = finite_number(self, "sharpness", sharpness, low=0.0, low_open=True)
         self.rest_speed = finite_number(self, "rest_speed", rest_speed, low=0.0)
-        self.subspace = checked_subspace("OptimalBlender", subspace, self.e_des, networks[0].hidden.in_features)
+        kinematic = [kinematic_member(n) for n in networks]
+        self.kinematics = any(kinematic)
+        if self.kinematics and self.solver != "linearised":
+            raise ValueError(
+                f"OptimalBlender: networks with kinematic inputs need solver='linearised', got solver={self.solver!r}"
+            )
+        self.subspace = checked_subspace("OptimalBlender", subspace, self.e_des, 3 * N_POINTS)
         self.realism = finite_number(self, "realism", realism, low=0.0)
         self.solve_ticks = positive_int(self, "solve_ticks", solve_ticks)
         if self.solve_ticks > 1 and self.solver != "linearised":
@@ -237,7 +246,10 @@ class OptimalBlender(Block):
         weights = [_weights(n) for n in networks]
         self._key = _weights_key(*weights)
         # every member's first layer with its normalisation folded in, stacked: one product per check
-        self._w1 = np.vstack([w["w1"] / w["scale"] for w in weights])
+        first = [w["w1"] / w["scale"] for w in weights]
+        if self.kinematics:  # the profile-only members weigh the kinematic features by zero
+            first = [np.pad(w1, ((0, 0), (0, 3 * N_POINTS + len(FEATURES) - w1.shape[1]))) for w1 in first]
+        self._w1 = np.vstack(first)
         self._b1 = np.concatenate([w["b1"] - (w["w1"] / w["scale"]) @ w["mean"] for w in weights])
         self._w2 = [w["w2"] for w in weights]
         self._b2 = np.array([w["b2"] for w in weights])
@@ -377,7 +389,7 @@ class OptimalBlender(Block):
             altered, human = self.altered, self.human
         problem = plan_problem(
             t0, length, predicted, altered, human, self.library.velocity[reference], self.knot_spacing, self.dt,
-            [self._sign, self._z_target, self.end_speed, self._delta], self.subspace, self.realism,
+            [self._sign, self._z_target, self.end_speed, self._delta], self.subspace, self.realism, self.kinematics,
         )  # fmt: skip
         job["problem"] = problem
         w0 = self._initial_guess(problem, predicted, reference, nearest)
@@ -436,11 +448,14 @@ class OptimalBlender(Block):
             guess = np.zeros((len(knots), 3))
         return guess.T.reshape(-1) / _U_SCALE
 
+    def _logits(self, x: np.ndarray) -> np.ndarray:
+        """Every network's logit at input ``x`` (the profile, and the kinematic features with such members)."""
+        hidden = np.split(np.maximum(self._w1 @ x + self._b1, 0.0), len(self._w2))
+        return np.array([w2 @ h for w2, h in zip(self._w2, hidden, strict=True)]) + self._b2
+
     def _logit(self, x: np.ndarray) -> float:
         """The logit of the least favourable network for ``e_des`` (the minimum of ``sign·z``, times ``sign``)."""
-        hidden = np.split(np.maximum(self._w1 @ x + self._b1, 0.0), len(self._w2))
-        z = np.array([w2 @ h for w2, h in zip(self._w2, hidden, strict=True)]) + self._b2
-        return float(self._sign * np.min(self._sign * z))
+        return float(self._sign * np.min(self._sign * self._logits(x)))
 
     def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
         """Knots (None: fall back), multipliers and status of one solve."""
@@ -490,4 +505,22 @@ class OptimalBlender(Block):
         length = movement_length(altered, self.rest_speed)
         if length == 0:
             return math.nan, distance
-        return sigmoid(self._logit((resampling_matrix(length) @ altered[:length]).T.reshape(-1))), distance
+        return sigmoid(self._logit(self._network_input(altered[:length], self.dt))), distance
+
+    def _network_input(self, movement: np.ndarray, dt: float) -> np.ndarray:
+        """The networks' input for a movement restricted to its duration: its profile (and kinematic features)."""
+        profile = (resampling_matrix(len(movement)) @ movement).T.reshape(-1)
+        return np.r_[profile, kinematic_features(movement, dt, self.rest_speed)] if self.kinematics else profile
+
+    def member_eps(self, velocity: np.ndarray) -> np.ndarray:
+        """ε̂ of every constrained network for a padded movement (T, 3), as the block's checks classify it.
+
+        The movement is restricted to its samples faster than ``rest_speed``; the kinematic features use
+        the block's step once it is in a diagram, the library's before. NaN for a movement that never moves.
+        """
+        velocity = np.asarray(velocity, dtype=np.float64)
+        length = movement_length(velocity, self.rest_speed)
+        if length == 0:
+            return np.full(len(self.networks), math.nan)
+        z = self._logits(self._network_input(velocity[:length], self.dt if self.dt > 0 else self.library.dt))
+        return np.array([sigmoid(float(v)) for v in z])

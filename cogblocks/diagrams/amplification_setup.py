@@ -11,6 +11,7 @@ import numpy as np
 from cogblocks.amplification import EncoderNet, SolutionTable, load_encoder, solution_table
 from cogblocks.amplification.judges import (
     BLENDER_ENSEMBLE,
+    BLENDER_KINEMATIC_ENSEMBLE,
     JUDGE_ENSEMBLE,
     EncoderEnsemble,
     Judges,
@@ -22,6 +23,7 @@ from cogblocks.amplification.subspace import MovementSubspace, movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
 __all__ = [
+    "BLENDER_MEMBERS",
     "BLENDER_WITH_ENCODER",
     "OPTIMISED",
     "AmplificationSetup",
@@ -50,11 +52,21 @@ OPTIMISED = {
 #: (``encoder_ensemble.pt``, trained with the judges' recipe).
 BLENDER_WITH_ENCODER = True
 
+#: How many networks of each shipped blender ensemble the optimised blender constrains: ``"profile"`` of
+#: ``encoder_ensemble.pt`` (60 profile inputs), ``"kinematic"`` of ``encoder_ensemble_kinematic.pt``
+#: (``mlp_kinematic``: the profile and the six kinematic features).
+BLENDER_MEMBERS = {"profile": 2, "kinematic": 0}
 
-def blender_networks(encoder: EncoderNet) -> list[EncoderNet]:
-    """The networks the optimised blender constrains: the shipped blender ensemble (and ``encoder``, see
-    :data:`BLENDER_WITH_ENCODER`)."""
-    return [*([encoder] if BLENDER_WITH_ENCODER else []), *load_ensemble(BLENDER_ENSEMBLE)]
+
+def blender_networks(
+    encoder: EncoderNet, profile: int | None = None, kinematic: int | None = None
+) -> list[EncoderNet]:
+    """The networks the optimised blender constrains: ``encoder`` (see :data:`BLENDER_WITH_ENCODER`), then the
+    first ``profile`` and ``kinematic`` networks of the shipped blender ensembles (:data:`BLENDER_MEMBERS` by default)."""
+    profile = BLENDER_MEMBERS["profile"] if profile is None else profile
+    kinematic = BLENDER_MEMBERS["kinematic"] if kinematic is None else kinematic
+    networks = [*([encoder] if BLENDER_WITH_ENCODER else []), *load_ensemble(BLENDER_ENSEMBLE)[:profile]]
+    return networks + (load_ensemble(BLENDER_KINEMATIC_ENSEMBLE)[:kinematic] if kinematic else [])
 
 
 @dataclass(frozen=True)
