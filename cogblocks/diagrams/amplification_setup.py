@@ -54,8 +54,9 @@ BLENDER_WITH_ENCODER = True
 
 #: How many networks of each shipped blender ensemble the optimised blender constrains: ``"profile"`` of
 #: ``encoder_ensemble.pt`` (60 profile inputs), ``"kinematic"`` of ``encoder_ensemble_kinematic.pt``
-#: (``mlp_kinematic``: the profile and the six kinematic features).
-BLENDER_MEMBERS = {"profile": 2, "kinematic": 0}
+#: (``mlp_kinematic``: the profile and the six kinematic features). Chosen on the inner split
+#: (docs/pop-amplification.md, "Fourth round"): the four kinematic networks join the two profile ones.
+BLENDER_MEMBERS = {"profile": 2, "kinematic": 4}
 
 
 def blender_networks(

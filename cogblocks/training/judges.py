@@ -15,8 +15,8 @@ movements stay unseen), and are disjoint (other folds, other seeds):
   ``7000 + 10·seed + i`` (``encoder_ensemble.pt``);
 - the blender's kinematic members: ``kinematic_members`` networks of the judges' recipe (the profile and
   the kinematic features, which the linearised solver constrains through their subgradients), each on the
-  whole training part (:func:`train_blender_kinematic`), torch seeds ``7100 + 10·seed + i``
-  (``encoder_ensemble_kinematic.pt``);
+  training part without one of ``kinematic_members`` folds (:func:`train_blender_kinematic`, fold seed
+  ``seed + 1000``), torch seeds ``7100 + 10·seed + i`` (``encoder_ensemble_kinematic.pt``);
 - the judges: ``judges`` networks, each trained on the training part without one of ``judges``
   seeded, stratified folds (:func:`~cogblocks.training.recipe.train_fold_ensemble`, fold seed
   ``seed``), torch seeds ``9000 + 10·seed + i`` (``judges.pt``).
@@ -55,7 +55,7 @@ WEIGHTS = Path(__file__).resolve().parent.parent / "data" / "weights"
 #: Networks of the blender's ensemble (``encoder_ensemble.pt``); the shipped encoder is not one of them.
 BLENDER_MEMBERS = 2
 #: Kinematic networks of the blender (``encoder_ensemble_kinematic.pt``).
-BLENDER_KINEMATIC_MEMBERS = 2
+BLENDER_KINEMATIC_MEMBERS = 4
 #: Fold seeds of the blender's ensemble are offset from the judges' so that their folds differ.
 BLENDER_FOLD_OFFSET = 1000
 #: The ensembles ``--only`` can name.
@@ -103,25 +103,25 @@ def train_blender_kinematic(
     *,
     log: Callable[[str], None] | None = print,
 ) -> list[EncoderNet]:
-    """``members`` networks of a recipe with kinematic inputs, each on all of ``train``, torch seeds ``7100 + 10·seed + i``.
+    """``members`` (≥ 2) networks of a recipe with kinematic inputs, each trained on ``train`` without one of
+    ``members`` seeded, stratified folds (fold seed ``seed + 1000``: not the judges'), torch seeds ``7100 + 10·seed + i``.
 
-    Seeds disjoint from the judges' (9000 + …) and the profile members' (7000 + …); the recipe's
-    architecture must be ``"mlp_kinematic"``, the one the blender can constrain.
+    Bagged like the judges (whose seeds, 9000 + …, and folds they do not share): on the inner split such members
+    made the plans convince the judges more often than members trained on the whole part did
+    (docs/pop-amplification.md, "Fourth round"). The recipe's architecture must be ``"mlp_kinematic"``, the
+    one the blender can constrain, without early stopping.
     """
-    if recipe.architecture != "mlp_kinematic" or recipe.patience > 0:
+    if recipe.architecture != "mlp_kinematic" or recipe.patience > 0 or members < 2:
         raise ValueError(
-            "train_blender_kinematic: the recipe must be an 'mlp_kinematic' one without early stopping, got "
-            f"architecture {recipe.architecture!r} with patience {recipe.patience}"
+            "train_blender_kinematic: needs an 'mlp_kinematic' recipe without early stopping and at least 2 members, "
+            f"got architecture {recipe.architecture!r}, patience {recipe.patience}, {members} members"
         )
     inputs = architecture_inputs(recipe.architecture, classifier_inputs(library), library.velocity, library.dt)
-    fear, networks = library.fear, []
-    for i in range(members):
-        started = time.perf_counter()
-        network = train_member(inputs[train], fear[train], recipe, 7100 + 10 * seed + i)[0]
-        networks.append(as_encoder_net(network, judge=True))
-        if log is not None:
-            log(f"blender kinematic member {i + 1}/{members} ({time.perf_counter() - started:.1f} s)")
-    return networks
+    networks = train_fold_ensemble(
+        inputs, library.fear, np.asarray(train), recipe, fold_seed=seed + BLENDER_FOLD_OFFSET,
+        torch_seed=7100 + 10 * seed, members=members, log=log, name="blender kinematic member",
+    )  # fmt: skip
+    return [as_encoder_net(n, judge=True) for n in networks]
 
 
 def train_judges(
