@@ -14,33 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from cogblocks.amplification.encoder import N_POINTS, EncoderNet
-from cogblocks.amplification.judges import FEATURES, KINEMATIC_INPUTS
-
-__all__ = ["PlanKinematics", "kinematic_member", "plan_features"]
+__all__ = ["PlanKinematics", "plan_features"]
 
 
 #: Rows of the features with a nonzero gradient: peak speed, log mean jerk, mean speed.
 _SMOOTH_ROWS = (0, 3, 4)
-
-
-def kinematic_member(network: EncoderNet, owner: str = "OptimalBlender") -> bool:
-    """Whether ``network`` takes the kinematic features after the profile (66 inputs) or only the profile (60).
-
-    Raises
-    ------
-    ValueError
-        For any other number of inputs, or a network whose checkpoint says it divides the profile by the
-        peak speed (``mlp_shape_kinematic``: not affine in the plan).
-    """
-    profile, inputs = 3 * N_POINTS, network.hidden.in_features
-    architecture = str(getattr(network, "checkpoint", {}).get("architecture", "mlp"))
-    if inputs == profile or (inputs == profile + len(FEATURES) and not KINEMATIC_INPUTS.get(architecture, False)):
-        return inputs != profile
-    raise ValueError(
-        f"{owner}: network must take the {profile} profile inputs, or those and the {len(FEATURES)} kinematic "
-        f"features (architecture 'mlp_kinematic'); got {inputs} inputs (architecture {architecture!r})"
-    )
 
 
 def plan_features(velocity: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:

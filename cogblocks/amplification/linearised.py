@@ -219,7 +219,8 @@ class LinearisedRun:
     """One decision's solve by :class:`LinearisedSolver`, resumable over several calls of :meth:`run`.
 
     ``p`` holds ``A, x0, H, q, C, g0, d`` and ``rhs`` as the SQP's parameters (classifier input
-    ``x0 + A w``, followed by the plan's kinematic features if ``p`` has ``kinematics``, cost ``wᵀHw + 2qᵀw``, gap ``g0 + C w``, last speed ``dᵀw ≥ rhs[2]``). Each
+    ``x0 + A w``, followed by the plan's kinematic features if ``p`` has ``kinematics``, cost
+    ``wᵀHw + 2qᵀw``, gap ``g0 + C w``, last speed ``dᵀw ≥ rhs[2]``). Each
     iteration solves ``min wᵀHw + 2qᵀw + μ‖w − w_k‖² + ρ Σ s_j`` subject to the members'
     linearised encoding constraints ``sign·z_j ≥ z_target`` (slack ``s_j`` each) and the speed
     constraint, through its dual (:func:`box_qp`), adding up to two tangent planes of the ball

@@ -34,10 +34,9 @@ from cogblocks.amplification.encoder import (
     movement_length,
     resampling_matrix,
 )
-from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, _weights, _weights_key
-from cogblocks.amplification.judges import FEATURES, kinematic_features
-from cogblocks.amplification.kinematics import kinematic_member
+from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver
 from cogblocks.amplification.linearised import LinearisedSolver
+from cogblocks.amplification.members import StackedNetworks
 from cogblocks.amplification.plan import PlanResult, equivalent_c, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
@@ -195,17 +194,8 @@ class OptimalBlender(Block):
         super().__init__(period=period)
         if not isinstance(library, ReachLibrary):
             raise ValueError(f"OptimalBlender: library must be a ReachLibrary, got {type(library).__name__}")
-        networks = [network] if isinstance(network, EncoderNet) else network
-        if (
-            not isinstance(networks, (list, tuple))
-            or not networks
-            or not all(isinstance(n, EncoderNet) for n in networks)
-        ):
-            given = type(network).__name__ if not isinstance(networks, (list, tuple)) else f"{len(networks)} items"
-            if isinstance(networks, (list, tuple)) and networks:
-                given += " of types " + ", ".join(sorted({type(n).__name__ for n in networks}))
-            raise ValueError(f"OptimalBlender: network must be an EncoderNet or a non-empty list of them, got {given}")
-        networks = list(networks)
+        self._stack = StackedNetworks(network)  # every member's first layer stacked: one product per check
+        networks = self._stack.networks
         self.e_des = one_of(self, "e_des", e_des, (0, 1))
         if table is not None and (not isinstance(table, SolutionTable) or table.e_des != self.e_des):
             raise ValueError(
@@ -223,8 +213,7 @@ class OptimalBlender(Block):
         self.solver = one_of(self, "solver", solver, ("sqpmethod", "ipopt", "linearised"))
         self.sharpness = finite_number(self, "sharpness", sharpness, low=0.0, low_open=True)
         self.rest_speed = finite_number(self, "rest_speed", rest_speed, low=0.0)
-        kinematic = [kinematic_member(n) for n in networks]
-        self.kinematics = any(kinematic)
+        self.kinematics = self._stack.kinematics
         if self.kinematics and self.solver != "linearised":
             raise ValueError(
                 f"OptimalBlender: networks with kinematic inputs need solver='linearised', got solver={self.solver!r}"
@@ -243,18 +232,10 @@ class OptimalBlender(Block):
         self.networks = networks
         self.network = networks[0]
         self.table = table
-        weights = [_weights(n) for n in networks]
-        self._key = _weights_key(*weights)
-        # every member's first layer with its normalisation folded in, stacked: one product per check
-        first = [w["w1"] / w["scale"] for w in weights]
-        if self.kinematics:  # the profile-only members weigh the kinematic features by zero
-            first = [np.pad(w1, ((0, 0), (0, 3 * N_POINTS + len(FEATURES) - w1.shape[1]))) for w1 in first]
-        self._w1 = np.vstack(first)
-        self._b1 = np.concatenate([w["b1"] - (w["w1"] / w["scale"]) @ w["mean"] for w in weights])
-        self._w2 = [w["w2"] for w in weights]
-        self._b2 = np.array([w["b2"] for w in weights])
+        self._key = self._stack.key
         self._sign = 1.0 if self.e_des == 1 else -1.0
-        self._linear = LinearisedSolver(self._w1, self._b1, self._w2, self._b2, self._sign)
+        stack = self._stack
+        self._linear = LinearisedSolver(stack.w1, stack.b1, stack.w2, stack.b2, self._sign)
         self._z_target = math.log((CLIP_HIGH + self.margin) / (1.0 - CLIP_HIGH - self.margin))
         self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)
         self._pending: dict[str, Any] | None = None
@@ -448,14 +429,9 @@ class OptimalBlender(Block):
             guess = np.zeros((len(knots), 3))
         return guess.T.reshape(-1) / _U_SCALE
 
-    def _logits(self, x: np.ndarray) -> np.ndarray:
-        """Every network's logit at input ``x`` (the profile, and the kinematic features with such members)."""
-        hidden = np.split(np.maximum(self._w1 @ x + self._b1, 0.0), len(self._w2))
-        return np.array([w2 @ h for w2, h in zip(self._w2, hidden, strict=True)]) + self._b2
-
     def _logit(self, x: np.ndarray) -> float:
         """The logit of the least favourable network for ``e_des`` (the minimum of ``sign·z``, times ``sign``)."""
-        return float(self._sign * np.min(self._sign * self._logits(x)))
+        return float(self._sign * np.min(self._sign * self._stack.logits(x)))
 
     def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
         """Knots (None: fall back), multipliers and status of one solve."""
@@ -505,22 +481,10 @@ class OptimalBlender(Block):
         length = movement_length(altered, self.rest_speed)
         if length == 0:
             return math.nan, distance
-        return sigmoid(self._logit(self._network_input(altered[:length], self.dt))), distance
-
-    def _network_input(self, movement: np.ndarray, dt: float) -> np.ndarray:
-        """The networks' input for a movement restricted to its duration: its profile (and kinematic features)."""
-        profile = (resampling_matrix(len(movement)) @ movement).T.reshape(-1)
-        return np.r_[profile, kinematic_features(movement, dt, self.rest_speed)] if self.kinematics else profile
+        return sigmoid(self._logit(self._stack.inputs(altered[:length], self.dt, self.rest_speed))), distance
 
     def member_eps(self, velocity: np.ndarray) -> np.ndarray:
-        """ε̂ of every constrained network for a padded movement (T, 3), as the block's checks classify it.
-
-        The movement is restricted to its samples faster than ``rest_speed``; the kinematic features use
-        the block's step once it is in a diagram, the library's before. NaN for a movement that never moves.
-        """
-        velocity = np.asarray(velocity, dtype=np.float64)
-        length = movement_length(velocity, self.rest_speed)
-        if length == 0:
-            return np.full(len(self.networks), math.nan)
-        z = self._logits(self._network_input(velocity[:length], self.dt if self.dt > 0 else self.library.dt))
-        return np.array([sigmoid(float(v)) for v in z])
+        """ε̂ of every constrained network for a padded movement (T, 3), as the block's checks classify it
+        (:meth:`StackedNetworks.eps`; the kinematic features with the block's step, the library's before it
+        is in a diagram)."""
+        return self._stack.eps(velocity, self.dt if self.dt > 0 else self.library.dt, self.rest_speed)

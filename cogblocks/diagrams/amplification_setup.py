@@ -59,11 +59,10 @@ BLENDER_WITH_ENCODER = True
 BLENDER_MEMBERS = {"profile": 2, "kinematic": 4}
 
 
-def blender_networks(
-    encoder: EncoderNet, profile: int | None = None, kinematic: int | None = None
-) -> list[EncoderNet]:
+def blender_networks(encoder: EncoderNet, profile: int | None = None, kinematic: int | None = None) -> list[EncoderNet]:
     """The networks the optimised blender constrains: ``encoder`` (see :data:`BLENDER_WITH_ENCODER`), then the
-    first ``profile`` and ``kinematic`` networks of the shipped blender ensembles (:data:`BLENDER_MEMBERS` by default)."""
+    first ``profile`` and ``kinematic`` networks of the shipped blender ensembles (by default
+    :data:`BLENDER_MEMBERS`)."""
     profile = BLENDER_MEMBERS["profile"] if profile is None else profile
     kinematic = BLENDER_MEMBERS["kinematic"] if kinematic is None else kinematic
     networks = [*([encoder] if BLENDER_WITH_ENCODER else []), *load_ensemble(BLENDER_ENSEMBLE)[:profile]]

@@ -82,10 +82,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--solver", default=defaults["solver"], choices=("linearised", "sqpmethod", "ipopt"))
     parser.add_argument("--solve-ticks", type=int, default=defaults.get("solve_ticks", 1))
     parser.add_argument("--iterations", type=int, default=defaults.get("iterations", 10))
-    parser.add_argument("--profile-members", type=int, default=BLENDER_MEMBERS["profile"],
-                        help="networks of encoder_ensemble.pt constrained besides the encoder")
-    parser.add_argument("--kinematic-members", type=int, default=BLENDER_MEMBERS["kinematic"],
-                        help="networks of encoder_ensemble_kinematic.pt constrained")
+    parser.add_argument(
+        "--profile-members",
+        type=int,
+        default=BLENDER_MEMBERS["profile"],
+        help="networks of encoder_ensemble.pt constrained besides the encoder",
+    )
+    parser.add_argument(
+        "--kinematic-members",
+        type=int,
+        default=BLENDER_MEMBERS["kinematic"],
+        help="networks of encoder_ensemble_kinematic.pt constrained",
+    )
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms,

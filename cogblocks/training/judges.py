@@ -104,7 +104,8 @@ def train_blender_kinematic(
     log: Callable[[str], None] | None = print,
 ) -> list[EncoderNet]:
     """``members`` (≥ 2) networks of a recipe with kinematic inputs, each trained on ``train`` without one of
-    ``members`` seeded, stratified folds (fold seed ``seed + 1000``: not the judges'), torch seeds ``7100 + 10·seed + i``.
+    ``members`` seeded, stratified folds (fold seed ``seed + 1000``: not the judges'), torch seeds
+    ``7100 + 10·seed + i``.
 
     Bagged like the judges (whose seeds, 9000 + …, and folds they do not share): on the inner split such members
     made the plans convince the judges more often than members trained on the whole part did
