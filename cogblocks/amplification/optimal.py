@@ -107,7 +107,10 @@ class OptimalBlender(Block):
         The classifier(s) whose ε̂ the plan constrains. With several (an ensemble), the plan must
         meet the encoding constraint for every one of them, i.e. for the ensemble's least favourable
         ε̂ (the minimum for ``e_des = 1``, the maximum for ``e_des = 0``); the reported ε̂ and the
-        acceptance checks use that member too. The table's network is best among them.
+        acceptance checks use that member too. The table's network is best among them. Networks of the
+        60 profile inputs, or (``solver="linearised"`` only) ``mlp_kinematic`` networks of the profile and
+        the six kinematic features of the planned movement, constrained through their exact values and
+        subgradients (:mod:`cogblocks.amplification.kinematics`).
     table : SolutionTable, optional
         w̃ on ``library`` for ``e_des``: the first warm start and the first decision's fallback.
     e_des : {0, 1}

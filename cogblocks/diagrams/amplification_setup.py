@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -23,8 +24,8 @@ from cogblocks.amplification.subspace import MovementSubspace, movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
 __all__ = [
-    "BLENDER_MEMBERS",
     "BLENDER_WITH_ENCODER",
+    "CONSTRAINED_MEMBERS",
     "OPTIMISED",
     "AmplificationSetup",
     "amplification_judges",
@@ -56,17 +57,24 @@ BLENDER_WITH_ENCODER = True
 #: ``encoder_ensemble.pt`` (60 profile inputs), ``"kinematic"`` of ``encoder_ensemble_kinematic.pt``
 #: (``mlp_kinematic``: the profile and the six kinematic features). Chosen on the inner split
 #: (docs/pop-amplification.md, "Fourth round"): the four kinematic networks join the two profile ones.
-BLENDER_MEMBERS = {"profile": 2, "kinematic": 4}
+CONSTRAINED_MEMBERS = {"profile": 2, "kinematic": 4}
 
 
-def blender_networks(encoder: EncoderNet, profile: int | None = None, kinematic: int | None = None) -> list[EncoderNet]:
+def blender_networks(
+    encoder: EncoderNet,
+    profile: int | None = None,
+    kinematic: int | None = None,
+    ensembles: tuple[Sequence[EncoderNet], Sequence[EncoderNet]] | None = None,
+) -> list[EncoderNet]:
     """The networks the optimised blender constrains: ``encoder`` (see :data:`BLENDER_WITH_ENCODER`), then the
-    first ``profile`` and ``kinematic`` networks of the shipped blender ensembles (by default
-    :data:`BLENDER_MEMBERS`)."""
-    profile = BLENDER_MEMBERS["profile"] if profile is None else profile
-    kinematic = BLENDER_MEMBERS["kinematic"] if kinematic is None else kinematic
-    networks = [*([encoder] if BLENDER_WITH_ENCODER else []), *load_ensemble(BLENDER_ENSEMBLE)[:profile]]
-    return networks + (load_ensemble(BLENDER_KINEMATIC_ENSEMBLE)[:kinematic] if kinematic else [])
+    first ``profile`` and ``kinematic`` networks of the blender's profile and kinematic ensembles (by default
+    :data:`CONSTRAINED_MEMBERS`; the shipped ``encoder_ensemble.pt`` and ``encoder_ensemble_kinematic.pt``
+    unless ``ensembles`` gives others, as :func:`cogblocks.training.pipeline.run_pipeline` does)."""
+    profile = CONSTRAINED_MEMBERS["profile"] if profile is None else profile
+    kinematic = CONSTRAINED_MEMBERS["kinematic"] if kinematic is None else kinematic
+    if ensembles is None:
+        ensembles = (load_ensemble(BLENDER_ENSEMBLE), load_ensemble(BLENDER_KINEMATIC_ENSEMBLE) if kinematic else [])
+    return [*([encoder] if BLENDER_WITH_ENCODER else []), *ensembles[0][:profile], *ensembles[1][:kinematic]]
 
 
 @dataclass(frozen=True)

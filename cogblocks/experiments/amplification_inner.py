@@ -27,7 +27,7 @@ from cogblocks.amplification import solution_table
 from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.diagrams.amplification import run_amplification
 from cogblocks.diagrams.amplification_setup import (
-    BLENDER_MEMBERS,
+    CONSTRAINED_MEMBERS,
     OPTIMISED,
     AmplificationSetup,
     amplification_judges,
@@ -58,7 +58,7 @@ def evaluate(
 ) -> dict[str, Any]:
     """The optimised row of :func:`run_amplification` on the first ``limit`` inner movements, with ``options``.
 
-    ``members`` (``{"profile": P, "kinematic": K}``) overrides :data:`BLENDER_MEMBERS`: the networks constrained.
+    ``members`` (``{"profile": P, "kinematic": K}``) overrides :data:`CONSTRAINED_MEMBERS`: the networks constrained.
     """
     setup = inner_setup(e_des, components)
     networks = blender_networks(setup.encoder, **(members or {}))
@@ -85,13 +85,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--profile-members",
         type=int,
-        default=BLENDER_MEMBERS["profile"],
+        default=CONSTRAINED_MEMBERS["profile"],
         help="networks of encoder_ensemble.pt constrained besides the encoder",
     )
     parser.add_argument(
         "--kinematic-members",
         type=int,
-        default=BLENDER_MEMBERS["kinematic"],
+        default=CONSTRAINED_MEMBERS["kinematic"],
         help="networks of encoder_ensemble_kinematic.pt constrained",
     )
     args = parser.parse_args(argv)

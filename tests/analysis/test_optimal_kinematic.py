@@ -20,7 +20,7 @@ from cogblocks.amplification.linearised import network_input
 from cogblocks.amplification.members import kinematic_member
 from cogblocks.amplification.plan import plan_problem
 from cogblocks.diagrams.amplification import amplification_setup
-from cogblocks.diagrams.amplification_setup import BLENDER_MEMBERS, blender_networks
+from cogblocks.diagrams.amplification_setup import CONSTRAINED_MEMBERS, blender_networks
 
 torch.set_num_threads(1)
 DT = 0.01
@@ -166,5 +166,5 @@ def test_shipped_blender_networks(setup):
     networks = blender_networks(setup.encoder)
     sizes = [n.hidden.in_features for n in networks]
     assert networks[0] is setup.encoder
-    assert sizes == [60] * (1 + BLENDER_MEMBERS["profile"]) + [66] * BLENDER_MEMBERS["kinematic"]
+    assert sizes == [60] * (1 + CONSTRAINED_MEMBERS["profile"]) + [66] * CONSTRAINED_MEMBERS["kinematic"]
     assert [n.hidden.in_features for n in blender_networks(setup.encoder, 1, 0)] == [60, 60]
