@@ -8,8 +8,8 @@ Usage::
 The blender's ensemble is trained with the recipe :data:`~cogblocks.training.recipe.CHOSEN`, the judges
 with :data:`~cogblocks.training.recipe.JUDGE_CHOSEN` (both chosen by cross-validation inside the training
 part, ``python -m cogblocks.training.recipe``; the judges' networks also take kinematic features, which
-the blender cannot constrain), only on the training part of the shipped encoder's split (the validation
-movements stay unseen), and are disjoint (other folds, other seeds):
+only the blender's linearised solver constrains), only on the training part of the shipped encoder's split
+(the validation movements stay unseen), and are disjoint (other folds, other seeds):
 
 - the blender's ensemble: ``blender_members`` networks (:func:`train_blender_ensemble`), torch seeds
   ``7000 + 10·seed + i`` (``encoder_ensemble.pt``);
