@@ -58,6 +58,7 @@ FEATURES = ("peak_speed", "time_to_peak", "duration", "log_mean_jerk", "mean_spe
 KINEMATIC_INPUTS = {"mlp_kinematic": False, "mlp_shape_kinematic": True}
 
 BLENDER_ENSEMBLE = "encoder_ensemble.pt"
+BLENDER_KINEMATIC_ENSEMBLE = "encoder_ensemble_kinematic.pt"
 JUDGE_ENSEMBLE = "judges.pt"
 
 
@@ -258,10 +259,11 @@ def load_ensemble(name_or_path: str | os.PathLike) -> list[EncoderNet]:
     Parameters
     ----------
     name_or_path : str or path-like
-        ``"encoder_ensemble.pt"`` (the blender's), ``"judges.pt"`` (the judges') in the shipped
+        ``"encoder_ensemble.pt"`` (the blender's), ``"encoder_ensemble_kinematic.pt"`` (the blender's
+        kinematic networks), ``"judges.pt"`` (the judges') in the shipped
         weights, or a path. The metadata is in each network's ``checkpoint`` attribute.
     """
-    if str(name_or_path) in (BLENDER_ENSEMBLE, JUDGE_ENSEMBLE):
+    if str(name_or_path) in (BLENDER_ENSEMBLE, BLENDER_KINEMATIC_ENSEMBLE, JUDGE_ENSEMBLE):
         with resources.as_file(resources.files("cogblocks.data") / "weights" / str(name_or_path)) as p:
             checkpoint = torch.load(p, weights_only=True)
     else:

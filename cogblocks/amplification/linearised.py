@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
-__all__ = ["LinearisedRun", "LinearisedSolver", "box_qp"]
+__all__ = ["LinearisedRun", "LinearisedSolver", "box_qp", "network_input"]
 
 _PENALTY = 1e3  # as the SQP's: weight of the encoding slack per logit unit
 
@@ -71,6 +71,22 @@ def box_qp(m: np.ndarray, b: np.ndarray, upper: np.ndarray) -> np.ndarray:
     return np.array(lam)
 
 
+def network_input(p: dict[str, Any], w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The networks' input at plan variables ``w`` and its Jacobian in ``w``.
+
+    ``x0 + A w`` (Jacobian ``A`` itself); with ``p["kinematics"]``
+    (:class:`~cogblocks.amplification.kinematics.PlanKinematics`), followed by the plan's exact kinematic
+    features, whose (sub)gradient rows follow ``A``'s: the solver re-linearises at every iteration, so a
+    Jacobian exact only near ``w`` is all it needs.
+    """
+    profile = p["x0"] + p["A"] @ w
+    kinematics = p.get("kinematics")
+    if kinematics is None:
+        return profile, p["A"]
+    features, jacobian = kinematics(w)
+    return np.r_[profile, features], np.vstack([p["A"], jacobian])
+
+
 def _solve(a: list[list[float]], y: list[float]) -> list[float]:
     """``a x = y`` for a small dense system, Gaussian elimination with partial pivoting (in place)."""
     n = len(y)
@@ -94,7 +110,8 @@ class LinearisedSolver:
     Parameters
     ----------
     w1, b1 : numpy.ndarray
-        The members' first layers stacked, input normalisation folded in: (members·hidden, inputs).
+        The members' first layers stacked, input normalisation folded in: (members·hidden, inputs); the
+        inputs are the 60 profile points, or those and the six kinematic features (:func:`network_input`).
     w2, b2 : sequence of numpy.ndarray, numpy.ndarray
         Each member's output weights (hidden,) and biases (members,).
     sign : float
@@ -122,9 +139,11 @@ class LinearisedSolver:
     def _merit(self, p: dict[str, Any], w: np.ndarray, z_target: float, delta: float) -> tuple[float, tuple]:
         """The exact ℓ1 merit of ``w``: cost plus ρ per logit unit short of ``z_target`` and per mm beyond ``delta``.
 
-        Also returns the members' logits and gradients at ``w`` (:meth:`logits`), for the next iteration.
+        Also returns the members' logits and gradients at ``w`` (:meth:`logits`) and the Jacobian of the
+        networks' input in ``w`` (:func:`network_input`), for the next iteration.
         """
-        linear = self.logits(p["x0"] + p["A"] @ w)
+        x, jacobian = network_input(p, w)
+        linear = (*self.logits(x), jacobian)
         excess = max(float(np.linalg.norm(p["g0"] + p["C"] @ w)) - delta, 0.0)
         cost = float(w @ p["H"] @ w + 2.0 * p["q"] @ w)
         short = float(np.maximum(z_target - self.sign * linear[0], 0.0).sum())
@@ -200,7 +219,8 @@ class LinearisedRun:
     """One decision's solve by :class:`LinearisedSolver`, resumable over several calls of :meth:`run`.
 
     ``p`` holds ``A, x0, H, q, C, g0, d`` and ``rhs`` as the SQP's parameters (classifier input
-    ``x0 + A w``, cost ``wᵀHw + 2qᵀw``, gap ``g0 + C w``, last speed ``dᵀw ≥ rhs[2]``). Each
+    ``x0 + A w``, followed by the plan's kinematic features if ``p`` has ``kinematics``, cost
+    ``wᵀHw + 2qᵀw``, gap ``g0 + C w``, last speed ``dᵀw ≥ rhs[2]``). Each
     iteration solves ``min wᵀHw + 2qᵀw + μ‖w − w_k‖² + ρ Σ s_j`` subject to the members'
     linearised encoding constraints ``sign·z_j ≥ z_target`` (slack ``s_j`` each) and the speed
     constraint, through its dual (:func:`box_qp`), adding up to two tangent planes of the ball
@@ -248,7 +268,7 @@ class LinearisedRun:
         Returns :attr:`finished`.
         """
         solver, p, members = self.solver, self.p, self.members
-        a, c, g0, delta = p["A"], p["C"], p["g0"], self.delta
+        c, g0, delta = p["C"], p["g0"], self.delta
         ran = 0
         while not self.finished:
             now = clock()
@@ -256,10 +276,10 @@ class LinearisedRun:
                 break
             if self._factor is None:
                 self._prepare()
-            z, g = self._linear
+            z, g, jacobian = self._linear
             w = self.w
             # rows G w ≥ h: encoding (linearised at w), speed; then tangents of the terminal ball as needed
-            rows = np.vstack([solver.sign * (g @ a), p["d"]])
+            rows = np.vstack([solver.sign * (g @ jacobian), p["d"]])
             h = np.r_[self.z_target - solver.sign * z + rows[:members] @ w, p["rhs"][2]]
             upper, hq = self._upper0, cho_solve(self._factor, p["q"] - self.mu * w)
             hg = cho_solve(self._factor, rows.T)
@@ -276,7 +296,7 @@ class LinearisedRun:
             self.w = w
             self.done += 1
             ran += 1
-            z, _ = self._linear
+            z = self._linear[0]
             reached = float((solver.sign * z).min())
             cost = float(w @ p["H"] @ w + 2.0 * p["q"] @ w)
             within = np.linalg.norm(g0 + c @ w) <= self.delta_pos

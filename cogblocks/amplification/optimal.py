@@ -28,13 +28,15 @@ import numpy as np
 from cogblocks.amplification.blending import add_blending_ports, blend
 from cogblocks.amplification.encoder import (
     CLIP_HIGH,
+    N_POINTS,
     REST_SPEED,
     EncoderNet,
     movement_length,
     resampling_matrix,
 )
-from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, _weights, _weights_key
+from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver
 from cogblocks.amplification.linearised import LinearisedSolver
+from cogblocks.amplification.members import StackedNetworks
 from cogblocks.amplification.plan import PlanResult, equivalent_c, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
@@ -105,7 +107,10 @@ class OptimalBlender(Block):
         The classifier(s) whose ε̂ the plan constrains. With several (an ensemble), the plan must
         meet the encoding constraint for every one of them, i.e. for the ensemble's least favourable
         ε̂ (the minimum for ``e_des = 1``, the maximum for ``e_des = 0``); the reported ε̂ and the
-        acceptance checks use that member too. The table's network is best among them.
+        acceptance checks use that member too. The table's network is best among them. Networks of the
+        60 profile inputs, or (``solver="linearised"`` only) ``mlp_kinematic`` networks of the profile and
+        the six kinematic features of the planned movement, constrained through their exact values and
+        subgradients (:mod:`cogblocks.amplification.kinematics`).
     table : SolutionTable, optional
         w̃ on ``library`` for ``e_des``: the first warm start and the first decision's fallback.
     e_des : {0, 1}
@@ -192,17 +197,8 @@ class OptimalBlender(Block):
         super().__init__(period=period)
         if not isinstance(library, ReachLibrary):
             raise ValueError(f"OptimalBlender: library must be a ReachLibrary, got {type(library).__name__}")
-        networks = [network] if isinstance(network, EncoderNet) else network
-        if (
-            not isinstance(networks, (list, tuple))
-            or not networks
-            or not all(isinstance(n, EncoderNet) for n in networks)
-        ):
-            given = type(network).__name__ if not isinstance(networks, (list, tuple)) else f"{len(networks)} items"
-            if isinstance(networks, (list, tuple)) and networks:
-                given += " of types " + ", ".join(sorted({type(n).__name__ for n in networks}))
-            raise ValueError(f"OptimalBlender: network must be an EncoderNet or a non-empty list of them, got {given}")
-        networks = list(networks)
+        self._stack = StackedNetworks(network)  # every member's first layer stacked: one product per check
+        networks = self._stack.networks
         self.e_des = one_of(self, "e_des", e_des, (0, 1))
         if table is not None and (not isinstance(table, SolutionTable) or table.e_des != self.e_des):
             raise ValueError(
@@ -220,7 +216,12 @@ class OptimalBlender(Block):
         self.solver = one_of(self, "solver", solver, ("sqpmethod", "ipopt", "linearised"))
         self.sharpness = finite_number(self, "sharpness", sharpness, low=0.0, low_open=True)
         self.rest_speed = finite_number(self, "rest_speed", rest_speed, low=0.0)
-        self.subspace = checked_subspace("OptimalBlender", subspace, self.e_des, networks[0].hidden.in_features)
+        self.kinematics = self._stack.kinematics
+        if self.kinematics and self.solver != "linearised":
+            raise ValueError(
+                f"OptimalBlender: networks with kinematic inputs need solver='linearised', got solver={self.solver!r}"
+            )
+        self.subspace = checked_subspace("OptimalBlender", subspace, self.e_des, 3 * N_POINTS)
         self.realism = finite_number(self, "realism", realism, low=0.0)
         self.solve_ticks = positive_int(self, "solve_ticks", solve_ticks)
         if self.solve_ticks > 1 and self.solver != "linearised":
@@ -234,15 +235,10 @@ class OptimalBlender(Block):
         self.networks = networks
         self.network = networks[0]
         self.table = table
-        weights = [_weights(n) for n in networks]
-        self._key = _weights_key(*weights)
-        # every member's first layer with its normalisation folded in, stacked: one product per check
-        self._w1 = np.vstack([w["w1"] / w["scale"] for w in weights])
-        self._b1 = np.concatenate([w["b1"] - (w["w1"] / w["scale"]) @ w["mean"] for w in weights])
-        self._w2 = [w["w2"] for w in weights]
-        self._b2 = np.array([w["b2"] for w in weights])
+        self._key = self._stack.key
         self._sign = 1.0 if self.e_des == 1 else -1.0
-        self._linear = LinearisedSolver(self._w1, self._b1, self._w2, self._b2, self._sign)
+        stack = self._stack
+        self._linear = LinearisedSolver(stack.w1, stack.b1, stack.w2, stack.b2, self._sign)
         self._z_target = math.log((CLIP_HIGH + self.margin) / (1.0 - CLIP_HIGH - self.margin))
         self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)
         self._pending: dict[str, Any] | None = None
@@ -377,7 +373,7 @@ class OptimalBlender(Block):
             altered, human = self.altered, self.human
         problem = plan_problem(
             t0, length, predicted, altered, human, self.library.velocity[reference], self.knot_spacing, self.dt,
-            [self._sign, self._z_target, self.end_speed, self._delta], self.subspace, self.realism,
+            [self._sign, self._z_target, self.end_speed, self._delta], self.subspace, self.realism, self.kinematics,
         )  # fmt: skip
         job["problem"] = problem
         w0 = self._initial_guess(problem, predicted, reference, nearest)
@@ -438,9 +434,7 @@ class OptimalBlender(Block):
 
     def _logit(self, x: np.ndarray) -> float:
         """The logit of the least favourable network for ``e_des`` (the minimum of ``sign·z``, times ``sign``)."""
-        hidden = np.split(np.maximum(self._w1 @ x + self._b1, 0.0), len(self._w2))
-        z = np.array([w2 @ h for w2, h in zip(self._w2, hidden, strict=True)]) + self._b2
-        return float(self._sign * np.min(self._sign * z))
+        return float(self._sign * np.min(self._sign * self._stack.logits(x)))
 
     def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
         """Knots (None: fall back), multipliers and status of one solve."""
@@ -490,4 +484,10 @@ class OptimalBlender(Block):
         length = movement_length(altered, self.rest_speed)
         if length == 0:
             return math.nan, distance
-        return sigmoid(self._logit((resampling_matrix(length) @ altered[:length]).T.reshape(-1))), distance
+        return sigmoid(self._logit(self._stack.inputs(altered[:length], self.dt, self.rest_speed))), distance
+
+    def member_eps(self, velocity: np.ndarray) -> np.ndarray:
+        """ε̂ of every constrained network for a padded movement (T, 3), as the block's checks classify it
+        (:meth:`StackedNetworks.eps`; the kinematic features with the block's step, the library's before it
+        is in a diagram)."""
+        return self._stack.eps(velocity, self.dt if self.dt > 0 else self.library.dt, self.rest_speed)

@@ -25,6 +25,7 @@ import numpy as np
 
 from cogblocks.amplification.encoder import resampling_matrix
 from cogblocks.amplification.encoder_casadi import _U_SCALE
+from cogblocks.amplification.kinematics import PlanKinematics
 from cogblocks.amplification.subspace import MovementSubspace
 
 __all__ = ["PlanResult", "equivalent_c", "knot_basis", "plan_problem", "sigmoid"]
@@ -97,6 +98,7 @@ def plan_problem(
     rhs: list[float],
     subspace: MovementSubspace | None = None,
     realism: float = 0.0,
+    kinematics: bool = False,
 ) -> dict[str, Any]:
     """The parameters of a plan from tick ``t`` on for a movement of ``length`` samples.
 
@@ -105,7 +107,9 @@ def plan_problem(
     reference movement's velocity (its direction serves before the human has moved). ``rhs`` is
     ``[sign, z_target, end_speed, delta]``; the returned ``rhs[2]`` is the last knot's required speed
     along the reach direction. With ``subspace``, the cost gains ``realism`` times the squared
-    residual of the classifier input (:meth:`MovementSubspace.penalty`).
+    residual of the classifier input (:meth:`MovementSubspace.penalty`). With ``kinematics``, the
+    problem holds the plan's kinematic features as ``"kinematics"``
+    (:class:`~cogblocks.amplification.kinematics.PlanKinematics` of the movement lasting ``length`` samples).
     """
     sign, z_target, end_speed, delta = rhs
     u_prev = altered[t - 1] - human[t - 1] if t > 0 else np.zeros(3)
@@ -134,6 +138,8 @@ def plan_problem(
         "phi0": phi0,
         "u_prev": u_prev,
     }
+    if kinematics:
+        problem["kinematics"] = PlanKinematics(base, t, phi, dt)
     if subspace is not None:  # penalise the altered movement's distance from realistic movements
         h, q = subspace.penalty(problem["A"], problem["x0"])
         problem["H"] = problem["H"] + realism * h / _U_SCALE**2

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -11,6 +12,7 @@ import numpy as np
 from cogblocks.amplification import EncoderNet, SolutionTable, load_encoder, solution_table
 from cogblocks.amplification.judges import (
     BLENDER_ENSEMBLE,
+    BLENDER_KINEMATIC_ENSEMBLE,
     JUDGE_ENSEMBLE,
     EncoderEnsemble,
     Judges,
@@ -23,6 +25,7 @@ from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
 __all__ = [
     "BLENDER_WITH_ENCODER",
+    "CONSTRAINED_MEMBERS",
     "OPTIMISED",
     "AmplificationSetup",
     "amplification_judges",
@@ -50,11 +53,28 @@ OPTIMISED = {
 #: (``encoder_ensemble.pt``, trained with the judges' recipe).
 BLENDER_WITH_ENCODER = True
 
+#: How many networks of each shipped blender ensemble the optimised blender constrains: ``"profile"`` of
+#: ``encoder_ensemble.pt`` (60 profile inputs), ``"kinematic"`` of ``encoder_ensemble_kinematic.pt``
+#: (``mlp_kinematic``: the profile and the six kinematic features). Chosen on the inner split
+#: (docs/pop-amplification.md, "Fourth round"): the four kinematic networks join the two profile ones.
+CONSTRAINED_MEMBERS = {"profile": 2, "kinematic": 4}
 
-def blender_networks(encoder: EncoderNet) -> list[EncoderNet]:
-    """The networks the optimised blender constrains: the shipped blender ensemble (and ``encoder``, see
-    :data:`BLENDER_WITH_ENCODER`)."""
-    return [*([encoder] if BLENDER_WITH_ENCODER else []), *load_ensemble(BLENDER_ENSEMBLE)]
+
+def blender_networks(
+    encoder: EncoderNet,
+    profile: int | None = None,
+    kinematic: int | None = None,
+    ensembles: tuple[Sequence[EncoderNet], Sequence[EncoderNet]] | None = None,
+) -> list[EncoderNet]:
+    """The networks the optimised blender constrains: ``encoder`` (see :data:`BLENDER_WITH_ENCODER`), then the
+    first ``profile`` and ``kinematic`` networks of the blender's profile and kinematic ensembles (by default
+    :data:`CONSTRAINED_MEMBERS`; the shipped ``encoder_ensemble.pt`` and ``encoder_ensemble_kinematic.pt``
+    unless ``ensembles`` gives others, as :func:`cogblocks.training.pipeline.run_pipeline` does)."""
+    profile = CONSTRAINED_MEMBERS["profile"] if profile is None else profile
+    kinematic = CONSTRAINED_MEMBERS["kinematic"] if kinematic is None else kinematic
+    if ensembles is None:
+        ensembles = (load_ensemble(BLENDER_ENSEMBLE), load_ensemble(BLENDER_KINEMATIC_ENSEMBLE) if kinematic else [])
+    return [*([encoder] if BLENDER_WITH_ENCODER else []), *ensembles[0][:profile], *ensembles[1][:kinematic]]
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ Usage::
 
     python -m cogblocks.experiments.amplification_inner --e-des 1 --limit 30 [--components 12]
         [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised] [--solve-ticks 1]
-        [--iterations 10]
+        [--iterations 10] [--profile-members 2] [--kinematic-members 0]
 
 The training part of the shipped encoder's split is split again, seeded and stratified
 (``ReachLibrary.split(0.3, 100)``); w̃ and the realism subspace are computed on the inner training
@@ -27,6 +27,7 @@ from cogblocks.amplification import solution_table
 from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.diagrams.amplification import run_amplification
 from cogblocks.diagrams.amplification_setup import (
+    CONSTRAINED_MEMBERS,
     OPTIMISED,
     AmplificationSetup,
     amplification_judges,
@@ -52,10 +53,15 @@ def inner_setup(
     return AmplificationSetup(library, train, val, movements, outer.encoder, table, e_des, subspace)
 
 
-def evaluate(e_des: int, limit: int, components: int, **options: Any) -> dict[str, Any]:
-    """The optimised row of :func:`run_amplification` on the first ``limit`` inner movements, with ``options``."""
+def evaluate(
+    e_des: int, limit: int, components: int, members: dict[str, int] | None = None, **options: Any
+) -> dict[str, Any]:
+    """The optimised row of :func:`run_amplification` on the first ``limit`` inner movements, with ``options``.
+
+    ``members`` (``{"profile": P, "kinematic": K}``) overrides :data:`CONSTRAINED_MEMBERS`: the networks constrained.
+    """
     setup = inner_setup(e_des, components)
-    networks = blender_networks(setup.encoder)
+    networks = blender_networks(setup.encoder, **(members or {}))
     result = run_amplification(
         ("optimised",), limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
         blender_networks=networks, optimised=options,
@@ -76,12 +82,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--solver", default=defaults["solver"], choices=("linearised", "sqpmethod", "ipopt"))
     parser.add_argument("--solve-ticks", type=int, default=defaults.get("solve_ticks", 1))
     parser.add_argument("--iterations", type=int, default=defaults.get("iterations", 10))
+    parser.add_argument(
+        "--profile-members",
+        type=int,
+        default=CONSTRAINED_MEMBERS["profile"],
+        help="networks of encoder_ensemble.pt constrained besides the encoder",
+    )
+    parser.add_argument(
+        "--kinematic-members",
+        type=int,
+        default=CONSTRAINED_MEMBERS["kinematic"],
+        help="networks of encoder_ensemble_kinematic.pt constrained",
+    )
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms,
                "solve_ticks": args.solve_ticks, "iterations": args.iterations}  # fmt: skip
-    row = evaluate(args.e_des, args.limit, args.components, solver=args.solver, **options)
-    print(json.dumps({"e_des": args.e_des, "components": args.components, **options, "solver": args.solver, **row}))
+    members = {"profile": args.profile_members, "kinematic": args.kinematic_members}
+    row = evaluate(args.e_des, args.limit, args.components, members, solver=args.solver, **options)
+    print(json.dumps({"e_des": args.e_des, "components": args.components, **options, "solver": args.solver,
+                      "members": members, **row}))  # fmt: skip
     return 0
 
 

@@ -14,7 +14,8 @@ them alike:
   linearly; a judge only (the linearised solver needs a piecewise linear network);
 - ``"mlp_kinematic"``: EncoderNet on the 60 points and the six
   :func:`~cogblocks.amplification.judges.kinematic_features` (66 inputs): duration and peak speed are
-  not in the resampled profile; a judge only;
+  not in the resampled profile; a judge, and a member the linearised solver constrains
+  (:mod:`cogblocks.amplification.kinematics`);
 - ``"mlp_shape_kinematic"``: EncoderNet on the profile divided by the movement's peak speed (shape
   only) and the six kinematic features; a judge only.
 """
@@ -123,7 +124,8 @@ def build_network(architecture: str, n_inputs: int, hidden: int, dropout: float)
 
 
 def as_encoder_net(network: nn.Module, *, judge: bool = False) -> EncoderNet:
-    """``network`` as the :class:`EncoderNet` the blender (or, with ``judge``, the judges) and the checkpoints take.
+    """``network`` as the :class:`EncoderNet` the blender's profile ensemble (or, with ``judge``, the judges and
+    the blender's kinematic members) and the checkpoints take.
 
     Raises
     ------
@@ -135,7 +137,8 @@ def as_encoder_net(network: nn.Module, *, judge: bool = False) -> EncoderNet:
         return network.to_encoder_net()
     if isinstance(network, EncoderNet) and (judge or network.hidden.in_features == _AXES * N_POINTS):
         return network
-    role = "neither the blender's nor a shipped judge" if isinstance(network, GRUEncoder) else "only a judge"
+    gru = isinstance(network, GRUEncoder)
+    role = "neither the blender's nor a shipped judge" if gru else "only a judge or a kinematic member (judge=True)"
     raise ValueError(
         f"as_encoder_net: a {type(network).__name__} of {network.mean.numel()} inputs is no EncoderNet of the 60 "
         f"profile inputs; it can be {role}"

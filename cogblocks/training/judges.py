@@ -2,16 +2,21 @@
 
 Usage::
 
-    python -m cogblocks.training.judges --seed 0 [--recipe NAME] [--judge-recipe NAME]
+    python -m cogblocks.training.judges --seed 0 [--recipe NAME] [--judge-recipe NAME] [--kinematic-members N]
+        [--only blender judges kinematic]
 
 The blender's ensemble is trained with the recipe :data:`~cogblocks.training.recipe.CHOSEN`, the judges
 with :data:`~cogblocks.training.recipe.JUDGE_CHOSEN` (both chosen by cross-validation inside the training
 part, ``python -m cogblocks.training.recipe``; the judges' networks also take kinematic features, which
-the blender cannot constrain), only on the training part of the shipped encoder's split (the validation
-movements stay unseen), and are disjoint (other folds, other seeds):
+only the blender's linearised solver constrains), only on the training part of the shipped encoder's split
+(the validation movements stay unseen), and are disjoint (other folds, other seeds):
 
 - the blender's ensemble: ``blender_members`` networks (:func:`train_blender_ensemble`), torch seeds
   ``7000 + 10·seed + i`` (``encoder_ensemble.pt``);
+- the blender's kinematic members: ``kinematic_members`` networks of the judges' recipe (the profile and
+  the kinematic features, which the linearised solver constrains through their subgradients), each on the
+  training part without one of ``kinematic_members`` folds (:func:`train_blender_kinematic`, fold seed
+  ``seed + 1000``), torch seeds ``7100 + 10·seed + i`` (``encoder_ensemble_kinematic.pt``);
 - the judges: ``judges`` networks, each trained on the training part without one of ``judges``
   seeded, stratified folds (:func:`~cogblocks.training.recipe.train_fold_ensemble`, fold seed
   ``seed``), torch seeds ``9000 + 10·seed + i`` (``judges.pt``).
@@ -32,20 +37,29 @@ import numpy as np
 import torch
 
 from cogblocks.amplification import EncoderNet
-from cogblocks.amplification.judges import BLENDER_ENSEMBLE, JUDGE_ENSEMBLE, ensemble_checkpoint
+from cogblocks.amplification.judges import (
+    BLENDER_ENSEMBLE,
+    BLENDER_KINEMATIC_ENSEMBLE,
+    JUDGE_ENSEMBLE,
+    ensemble_checkpoint,
+)
 from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.training.architectures import architecture_inputs, as_encoder_net
 from cogblocks.training.recipe import CHOSEN, JUDGE_CHOSEN, RECIPES, TrainingRecipe, train_fold_ensemble, train_member
 
-__all__ = ["main", "train_blender_ensemble", "train_judges"]
+__all__ = ["main", "train_blender_ensemble", "train_blender_kinematic", "train_judges"]
 
 WEIGHTS = Path(__file__).resolve().parent.parent / "data" / "weights"
 #: Networks of the blender's ensemble (``encoder_ensemble.pt``); the shipped encoder is not one of them.
 BLENDER_MEMBERS = 2
+#: Kinematic networks of the blender (``encoder_ensemble_kinematic.pt``).
+BLENDER_KINEMATIC_MEMBERS = 4
 #: Fold seeds of the blender's ensemble are offset from the judges' so that their folds differ.
 BLENDER_FOLD_OFFSET = 1000
+#: The ensembles ``--only`` can name.
+PARTS = ("blender", "kinematic", "judges")
 
 
 def train_blender_ensemble(
@@ -78,6 +92,37 @@ def train_blender_ensemble(
         if log is not None:
             log(f"blender ensemble member {i + 1}/{members} ({time.perf_counter() - started:.1f} s)")
     return networks
+
+
+def train_blender_kinematic(
+    library: ReachLibrary,
+    train: np.ndarray,
+    recipe: TrainingRecipe,
+    seed: int,
+    members: int,
+    *,
+    log: Callable[[str], None] | None = print,
+) -> list[EncoderNet]:
+    """``members`` (≥ 2) networks of a recipe with kinematic inputs, each trained on ``train`` without one of
+    ``members`` seeded, stratified folds (fold seed ``seed + 1000``: not the judges'), torch seeds
+    ``7100 + 10·seed + i``.
+
+    Bagged like the judges (whose seeds, 9000 + …, and folds they do not share): on the inner split such members
+    made the plans convince the judges more often than members trained on the whole part did
+    (docs/pop-amplification.md, "Fourth round"). The recipe's architecture must be ``"mlp_kinematic"``, the
+    one the blender can constrain, without early stopping.
+    """
+    if recipe.architecture != "mlp_kinematic" or recipe.patience > 0 or members < 2:
+        raise ValueError(
+            "train_blender_kinematic: needs an 'mlp_kinematic' recipe without early stopping and at least 2 members, "
+            f"got architecture {recipe.architecture!r}, patience {recipe.patience}, {members} members"
+        )
+    inputs = architecture_inputs(recipe.architecture, classifier_inputs(library), library.velocity, library.dt)
+    networks = train_fold_ensemble(
+        inputs, library.fear, np.asarray(train), recipe, fold_seed=seed + BLENDER_FOLD_OFFSET,
+        torch_seed=7100 + 10 * seed, members=members, log=log, name="blender kinematic member",
+    )  # fmt: skip
+    return [as_encoder_net(n, judge=True) for n in networks]
 
 
 def train_judges(
@@ -118,7 +163,15 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--blender-members", type=int, default=BLENDER_MEMBERS,
         help=f"networks the blender constrains (default {BLENDER_MEMBERS})",
     )  # fmt: skip
+    parser.add_argument(
+        "--kinematic-members", type=int, default=BLENDER_KINEMATIC_MEMBERS,
+        help=f"kinematic networks the blender constrains, recipe --judge-recipe (default {BLENDER_KINEMATIC_MEMBERS})",
+    )  # fmt: skip
     parser.add_argument("--judges", type=int, default=5, help="networks of the judges' ensemble (default 5)")
+    parser.add_argument(
+        "--only", nargs="+", choices=PARTS, default=list(PARTS),
+        help="train and save only these ensembles (default all; each is seeded on its own)",
+    )  # fmt: skip
     parser.add_argument("--out", type=Path, default=WEIGHTS, help=f"directory to write to (default {WEIGHTS})")
     args = parser.parse_args(argv)
 
@@ -131,14 +184,23 @@ def main(argv: Sequence[str] | None = None) -> None:
         return {"seed": args.seed, "library_sha256": fingerprint, "recipe": name, "architecture": recipe.architecture,
                 **{f"recipe_{k}": v for k, v in asdict(recipe).items()}}  # fmt: skip
 
-    blender = train_blender_ensemble(
-        setup.library, setup.train, RECIPES[args.recipe], args.seed, args.blender_members
-    )  # fmt: skip
-    judges = train_judges(setup.library, setup.train, RECIPES[args.judge_recipe], args.seed, args.judges)
     args.out.mkdir(parents=True, exist_ok=True)
-    torch.save(ensemble_checkpoint(blender, role="blender", **meta(args.recipe)), args.out / BLENDER_ENSEMBLE)
-    torch.save(ensemble_checkpoint(judges, role="judges", **meta(args.judge_recipe)), args.out / JUDGE_ENSEMBLE)
-    print(f"saved {len(blender)} blender networks and {len(judges)} judges to {args.out}")
+    library, train = setup.library, setup.train
+    if "blender" in args.only:
+        blender = train_blender_ensemble(library, train, RECIPES[args.recipe], args.seed, args.blender_members)
+        torch.save(ensemble_checkpoint(blender, role="blender", **meta(args.recipe)), args.out / BLENDER_ENSEMBLE)
+        print(f"saved {len(blender)} blender networks to {args.out / BLENDER_ENSEMBLE}")
+    if "kinematic" in args.only:
+        kinematic = train_blender_kinematic(
+            library, train, RECIPES[args.judge_recipe], args.seed, args.kinematic_members
+        )  # fmt: skip
+        checkpoint = ensemble_checkpoint(kinematic, role="blender", **meta(args.judge_recipe))
+        torch.save(checkpoint, args.out / BLENDER_KINEMATIC_ENSEMBLE)
+        print(f"saved {len(kinematic)} kinematic blender networks to {args.out / BLENDER_KINEMATIC_ENSEMBLE}")
+    if "judges" in args.only:
+        judges = train_judges(library, train, RECIPES[args.judge_recipe], args.seed, args.judges)
+        torch.save(ensemble_checkpoint(judges, role="judges", **meta(args.judge_recipe)), args.out / JUDGE_ENSEMBLE)
+        print(f"saved {len(judges)} judges to {args.out / JUDGE_ENSEMBLE}")
 
 
 if __name__ == "__main__":

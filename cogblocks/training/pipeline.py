@@ -6,7 +6,7 @@ Usage::
 
 :func:`run_pipeline` loads the library (``.mat`` VelocityData, ``.npz`` or ``.csv``, see
 :mod:`cogblocks.data.loaders`), splits it (seeded, stratified, 30 % held out), trains the encoder with
-5-fold cross-validation on the training part, the blender's second network and the judges' ensemble
+5-fold cross-validation on the training part, the blender's other networks and the judges' ensemble
 (:mod:`cogblocks.training.judges`), fits the kinematic judge, computes w̃ for both directions,
 trains the RL corrector and validates every variant in both directions on the held-out part. Weights,
 tables and a JSON report go to ``out_dir``. ``quick`` shortens the training (5 encoder epochs, 60
@@ -33,11 +33,17 @@ from cogblocks.data.features import classifier_inputs
 from cogblocks.data.loaders import load_csv, load_npz, load_velocity_data_mat
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.diagrams.amplification import run_amplification
-from cogblocks.diagrams.amplification_setup import BLENDER_WITH_ENCODER, AmplificationSetup, optimised_subspace
+from cogblocks.diagrams.amplification_setup import AmplificationSetup, blender_networks, optimised_subspace
 from cogblocks.training.amplification_env import record_episodes
 from cogblocks.training.corrector import CorrectorConfig, train
 from cogblocks.training.encoder import EncoderConfig, cross_validate
-from cogblocks.training.judges import BLENDER_MEMBERS, train_blender_ensemble, train_judges
+from cogblocks.training.judges import (
+    BLENDER_KINEMATIC_MEMBERS,
+    BLENDER_MEMBERS,
+    train_blender_ensemble,
+    train_blender_kinematic,
+    train_judges,
+)
 from cogblocks.training.recipe import CHOSEN, JUDGE_CHOSEN, RECIPES
 
 __all__ = ["DIRECTIONS", "load_library", "run_pipeline"]
@@ -93,7 +99,8 @@ def run_pipeline(
     library : ReachLibrary or path-like
         The movements, or a file for :func:`load_library`.
     out_dir : path-like
-        Created if needed; receives ``encoder.pt``, ``encoder_ensemble.pt``, ``judges.pt``,
+        Created if needed; receives ``encoder.pt``, ``encoder_ensemble.pt``, ``encoder_ensemble_kinematic.pt``,
+        ``judges.pt``,
         ``corrector.pt``, ``w_tilde_encode.npz``, ``w_tilde_remove.npz``, the optimised blender's
         subspaces ``subspace_encode.npz`` and ``subspace_remove.npz``
         (:func:`cogblocks.amplification.subspace.load_subspace`) and
@@ -143,9 +150,10 @@ def run_pipeline(
         if not (quick or encoder_epochs)
         else (replace(RECIPES[CHOSEN], epochs=epochs), replace(RECIPES[JUDGE_CHOSEN], epochs=epochs))
     )
-    say(f"blender ensemble (recipe '{CHOSEN}') and judges ('{JUDGE_CHOSEN}'), at most {recipe.epochs} epochs")
+    say(f"blender ensembles ('{CHOSEN}', '{JUDGE_CHOSEN}'), judges ('{JUDGE_CHOSEN}'), at most {recipe.epochs} epochs")
     ensemble = train_blender_ensemble(library, train_idx, recipe, seed, BLENDER_MEMBERS, log=say)
-    blender_networks = [*([encoder] if BLENDER_WITH_ENCODER else []), *ensemble]
+    kinematic = train_blender_kinematic(library, train_idx, judge_recipe, seed, BLENDER_KINEMATIC_MEMBERS, log=say)
+    constrained = blender_networks(encoder, ensembles=(ensemble, kinematic))
     judges = Judges(
         EncoderEnsemble(
             train_judges(library, train_idx, judge_recipe, seed, 5, log=say), architecture=judge_recipe.architecture
@@ -183,6 +191,7 @@ def run_pipeline(
     )
     torch.save(ensemble_checkpoint(ensemble, role="blender", **meta), out / "encoder_ensemble.pt")
     judge_meta = {**meta, "recipe": JUDGE_CHOSEN, "architecture": judge_recipe.architecture}
+    torch.save(ensemble_checkpoint(kinematic, role="blender", **judge_meta), out / "encoder_ensemble_kinematic.pt")
     torch.save(ensemble_checkpoint(judges.ensemble.networks, role="judges", **judge_meta), out / "judges.pt")
     torch.save(
         {"state_dict": corrector.state_dict(), "seed": seed, "config": asdict(corrector_config)}, out / "corrector.pt"
@@ -207,7 +216,7 @@ def run_pipeline(
             e_des=setup.e_des,
             setup=setup,
             judges=judges,
-            blender_networks=blender_networks,
+            blender_networks=constrained,
             corrector=corrector,
         )
     report["seconds"] = time.perf_counter() - started

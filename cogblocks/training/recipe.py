@@ -135,8 +135,9 @@ RECIPES = {
 CHOSEN = "longest_fast"
 
 #: The recipe of the shipped judges: the best cross-validation score of :data:`RECIPES` (architectures
-#: included). Its networks take the kinematic features too, so the blender cannot constrain them: it keeps
-#: :data:`CHOSEN`, the best of the candidates it can express (``mlp``, ``cnn``).
+#: included). Its networks take the kinematic features too: the blender's profile ensemble keeps :data:`CHOSEN`,
+#: the best of the profile-only candidates (``mlp``, ``cnn``), and its kinematic members (linearised solver
+#: only) are bagged networks of this recipe (:func:`cogblocks.training.judges.train_blender_kinematic`).
 JUDGE_CHOSEN = "mlp_kinematic"
 
 

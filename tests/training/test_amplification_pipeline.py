@@ -13,7 +13,7 @@ from cogblocks.cli import main
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.loaders import DataFormatError, load_csv, load_npz, save_csv
 from cogblocks.data.reach import generate_reach_library
-from cogblocks.training.judges import BLENDER_MEMBERS
+from cogblocks.training.judges import BLENDER_KINEMATIC_MEMBERS, BLENDER_MEMBERS
 from cogblocks.training.pipeline import DIRECTIONS, load_library, run_pipeline
 from cogblocks.training.recipe import CHOSEN
 
@@ -71,7 +71,8 @@ def test_run_pipeline_on_a_renamed_library(library, tmp_path):
         path, out, seed=2, label_field="condition", limit=1, encoder_epochs=2, corrector_episodes=2, log=lines.append
     )
     assert any("cross-validation" in line for line in lines) and any("judge 5/5" in line for line in lines)
-    for name in ("encoder.pt", "encoder_ensemble.pt", "judges.pt", "corrector.pt", "report.json"):
+    for name in ("encoder.pt", "encoder_ensemble.pt", "encoder_ensemble_kinematic.pt", "judges.pt", "corrector.pt",
+                 "report.json"):  # fmt: skip
         assert (out / name).stat().st_size > 0
     assert json.loads((out / "report.json").read_text()) == json.loads(json.dumps(report))
     train, val = library.split(0.3, 2)
@@ -84,6 +85,8 @@ def test_run_pipeline_on_a_renamed_library(library, tmp_path):
     blender = load_ensemble(out / "encoder_ensemble.pt")
     assert len(load_ensemble(out / "judges.pt")) == 5 and len(blender) == BLENDER_MEMBERS
     assert blender[0].checkpoint["recipe"] == CHOSEN
+    kinematic = load_ensemble(out / "encoder_ensemble_kinematic.pt")
+    assert len(kinematic) == BLENDER_KINEMATIC_MEMBERS and all(n.hidden.in_features == 66 for n in kinematic)
     # the optimised blender's subspaces: the PCA of the training part's movements of each direction's class
     movements = library.subset(train)
     for name, e_des in DIRECTIONS.items():

@@ -17,7 +17,7 @@ from cogblocks.training.architectures import (
     as_encoder_net,
     build_network,
 )
-from cogblocks.training.judges import train_blender_ensemble, train_judges
+from cogblocks.training.judges import train_blender_ensemble, train_blender_kinematic, train_judges
 from cogblocks.training.recipe import TrainingRecipe, cross_validate_recipe, train_fold_ensemble, train_member
 
 torch.set_num_threads(1)
@@ -129,3 +129,20 @@ def test_judges_of_the_cnn_and_kinematic_recipes_and_judge_only_candidates(small
     kinematic = TrainingRecipe(epochs=1, batch_size=16, hidden=3, architecture="mlp_kinematic")
     wide_judges = train_judges(library, np.arange(24), kinematic, seed=0, members=2, log=None)
     assert all(n.hidden.in_features == 66 for n in wide_judges)
+
+
+def test_blender_kinematic_members_are_bagged_and_seeded(small):
+    library, _ = small
+    recipe = TrainingRecipe(epochs=2, batch_size=16, hidden=3, architecture="mlp_kinematic")
+    rows = np.arange(24)
+    members = train_blender_kinematic(library, rows, recipe, seed=0, members=2, log=None)
+    assert all(isinstance(n, EncoderNet) and n.hidden.in_features == 66 for n in members)
+    # member i: the rows without fold i (fold seed 1000), torch seed 7100 + i
+    inputs = architecture_inputs("mlp_kinematic", classifier_inputs(library), library.velocity, library.dt)
+    direct = train_fold_ensemble(inputs, library.fear, rows, recipe, fold_seed=1000, torch_seed=7100, members=2)
+    for member, network in zip(members, direct, strict=True):
+        np.testing.assert_array_equal(member.predict(inputs), network.predict(inputs))
+    with pytest.raises(ValueError, match="needs an 'mlp_kinematic' recipe without early stopping"):
+        train_blender_kinematic(library, rows, TrainingRecipe(epochs=1, hidden=3), seed=0, members=2, log=None)
+    with pytest.raises(ValueError, match="at least 2 members"):
+        train_blender_kinematic(library, rows, recipe, seed=0, members=1, log=None)
