@@ -150,10 +150,11 @@ def test_a_committed_pace_is_kept_for_commit_periods():
     """With ``commit``, a pace once chosen is continued (same frequency, θ_ref = anchor + ω t without a jump) for
     ``commit`` periods; without it, the same group's pace is stopped half-way (validation group 429)."""
     group = random_groups(430, "validation", 0)[429]
-    plain = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph)
+    plain = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, commit=0)
     _closed_loop(group, plain, group.duration, [])
     assert plain.choices[:4] == [PACE] * 4 and plain.choices[4] == NONE
-    kept = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, commit=10)
+    kept = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph)
+    assert kept.commit == 10  # the default
     values: list[float] = []
     finish = kept._finish
 
