@@ -2,7 +2,7 @@
 
 Usage::
 
-    python -m cogblocks.experiments.amplification_gap --e-des 0 --limit 30
+    python -m cogblocks.experiments.amplification_gap --e-des 0 --limit 30 [--emit human|plan]
 
 Each plan is checked on the movement the block *would* emit if the human followed the prediction (the
 emitted past, then the plan in force). On the inner split
@@ -91,7 +91,7 @@ def planned_vs_emitted(setup: AmplificationSetup, limit: int, **options: Any) ->
                 "kinematic": int(decisions["kinematic"][0]), "features": features[0].tolist(),
             },
             "last_commit_tick": int(blender.results[committed[-1]].tick) if committed else None,
-            "guarded_ticks": int(getattr(blender, "guarded", 0)),
+            "guarded_ticks": len(blender.guarded_ticks),
         })  # fmt: skip
     return rows
 
@@ -123,6 +123,7 @@ def summarise(rows: list[dict[str, Any]], e_des: int) -> dict[str, Any]:
         for j, name in enumerate(FEATURES)
     }
     out["velocity_max_abs_diff_p50"] = float(np.median([r["planned"]["max_abs_diff"] for r in planned]))
+    out["guarded_ticks"] = int(sum(r["guarded_ticks"] for r in rows))
     return out
 
 
@@ -131,11 +132,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m cogblocks.experiments.amplification_gap", description=__doc__)
     parser.add_argument("--e-des", type=int, choices=(0, 1), default=0)
     parser.add_argument("--limit", type=int, default=30, help="inner movements replayed (default 30)")
+    parser.add_argument("--emit", choices=("human", "plan"), default=OPTIMISED.get("emit", "human"))
     parser.add_argument("--per-movement", action="store_true", help="print every movement's row too")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    rows = planned_vs_emitted(inner_setup(args.e_des), args.limit)
-    out = {"e_des": args.e_des, "limit": args.limit, **summarise(rows, args.e_des)}
+    rows = planned_vs_emitted(inner_setup(args.e_des), args.limit, emit=args.emit)
+    out = {"e_des": args.e_des, "limit": args.limit, "emit": args.emit, **summarise(rows, args.e_des)}
     if args.per_movement:
         out["rows"] = rows
     print(json.dumps(out))
