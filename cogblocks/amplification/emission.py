@@ -10,9 +10,9 @@ plus a correction ``u``; it is checked on ``b + u``. Two ways to emit it:
 - ``"plan"``: the plan itself, ``b + u``, so that the emitted movement is the movement planned and
   checked. The terminal gap then drifts by ``dt·Σ (b − v_h)``; the next decision sees the drift and
   plans it away, and a **guard** covers the ticks until then (:func:`guarded_velocity`): when the final
-  gap the plan now leads to (the human following ``b``) exceeds the plan's ``δ``, the excess is taken
-  back evenly over the ticks left to the plan's end, so it is within ``δ`` at the end and the
-  emitted velocity changes by small steps, not by the prediction's error.
+  gap the plan now leads to (the human following ``b``) exceeds ``δ_pos`` (the bound a plan is accepted
+  with), the excess is taken back evenly over the ticks left to the plan's end, so it is within
+  ``δ_pos`` at the end and the emitted velocity changes by small steps, not by the prediction's error.
 
 Emitting the plan, a committed plan is also **re-anchored** (:func:`rebased`): its held correction is
 taken from the sample actually emitted before it, not the one its problem assumed (they differ after the

@@ -302,7 +302,7 @@ class OptimalBlender(Block):
         v_h, v_r, v_a = self.v_h.value, self.v_r.value, self.v_a.value
         if state["end"] > 0 and self.emit == "plan" and t < state["end"]:
             v_a[...], guarded = guarded_velocity(
-                t, v_h, self.altered, self.human, state["plan"], state["basis"], state["end"], self.dt, self._delta
+                t, v_h, self.altered, self.human, state["plan"], state["basis"], state["end"], self.dt, self.delta_pos
             )
             self.guarded_ticks += [t] * guarded
             self.c.value[...] = equivalent_c(v_a, v_h, v_r)
