@@ -21,12 +21,57 @@ pass-through or the guard), so that the emitted velocity stays continuous; its c
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 import numpy as np
 
-__all__ = ["EMISSIONS", "final_gap", "guarded_velocity", "rebased"]
+from cogblocks.amplification.blending import blend
+from cogblocks.amplification.plan import equivalent_c
+
+__all__ = ["EMISSIONS", "emit_tick", "final_gap", "guarded_velocity", "planned_movement", "rebased"]
 
 #: The values of ``OptimalBlender(emit=...)``.
 EMISSIONS = ("human", "plan")
+
+
+def emit_tick(
+    t: int, v_h: np.ndarray, v_r: np.ndarray, v_a: np.ndarray, state: dict[str, Any], altered: np.ndarray,
+    human: np.ndarray, dt: float, delta_pos: float, emit: str,
+) -> tuple[float, bool]:  # fmt: skip
+    """Write tick ``t``'s velocity under ``state`` (the block's state in force) into ``v_a``, before any ``v_u``.
+
+    The plan (``v_h + u``, or the guarded ``b + u`` with ``emit="plan"``; zero from its end on), else the
+    table's blend, else ``v_h``. Returns the diagnostic ``c`` and whether the guard changed the velocity.
+    """
+    if state["end"] > 0 and emit == "plan" and t < state["end"]:
+        v_a[...], guarded = guarded_velocity(
+            t, v_h, altered, human, state["plan"], state["basis"], state["end"], dt, delta_pos
+        )
+        return equivalent_c(v_a, v_h, v_r), guarded
+    if state["end"] > 0:
+        v_a[...] = v_h + state["plan"][t] if t < state["end"] else 0.0
+        return equivalent_c(v_a, v_h, v_r), False
+    if math.isfinite(state["table_c"]):
+        blend(state["table_c"], v_h, v_r, v_a)
+        return state["table_c"], False
+    v_a[...] = v_h
+    return 1.0, False
+
+
+def planned_movement(
+    t: int, altered: np.ndarray, predicted: np.ndarray, state: dict[str, Any], reference: np.ndarray, emit: str
+) -> np.ndarray:
+    """The movement emitted under ``state`` (``altered`` before ``t``, then from ``t`` on) if the human follows
+    ``predicted``; ``reference`` is the reference movement's velocity (for the table's blend)."""
+    future = predicted[t:]
+    if state["end"] > 0:  # emitting the plan, the future is its own prediction's, not this one's
+        future = (state["basis"][t:] if emit == "plan" else future) + state["plan"][t:]
+        future[max(state["end"] - t, 0) :] = 0.0
+    elif math.isfinite(state["table_c"]):
+        c = state["table_c"]
+        future = c * future + (1.0 - c) * reference[t : len(predicted)]
+    return np.concatenate([altered[:t], future])
 
 
 def final_gap(

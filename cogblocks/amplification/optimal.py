@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.amplification.blending import add_blending_ports, blend
-from cogblocks.amplification.emission import EMISSIONS, guarded_velocity, rebased
+from cogblocks.amplification.blending import add_blending_ports
+from cogblocks.amplification.emission import EMISSIONS, emit_tick, planned_movement, rebased
 from cogblocks.amplification.encoder import (
     CLIP_HIGH,
     N_POINTS,
@@ -38,7 +38,7 @@ from cogblocks.amplification.encoder import (
 from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver
 from cogblocks.amplification.linearised import LinearisedSolver
 from cogblocks.amplification.members import StackedNetworks
-from cogblocks.amplification.plan import PlanResult, equivalent_c, plan_problem, sigmoid
+from cogblocks.amplification.plan import PlanResult, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
 from cogblocks.blocks.samples import plausible
@@ -160,9 +160,8 @@ class OptimalBlender(Block):
     realism : float
         Weight of that penalty against ``Σ‖u‖²`` (only with ``subspace``).
     emit : {"human", "plan"}
-        What a plan emits: ``v_h + u`` (default) or the plan itself, the prediction it was made on plus
-        ``u``, so that the emitted movement is the checked one, under a terminal guard
-        (:mod:`cogblocks.amplification.emission`; ticks it overrode in :attr:`guarded_ticks`).
+        What a plan emits: ``v_h + u`` (default) or the plan itself, its prediction plus ``u``, so that the
+        emitted movement is the checked one, under a terminal guard (:mod:`~cogblocks.amplification.emission`).
 
     Notes
     -----
@@ -299,23 +298,10 @@ class OptimalBlender(Block):
                 self._pending.pop("solving")
                 self.tick_ms.append((time.thread_time() - started) * 1e3)
         state = {**self._in_force(), **(self._pending or {})}
-        v_h, v_r, v_a = self.v_h.value, self.v_r.value, self.v_a.value
-        if state["end"] > 0 and self.emit == "plan" and t < state["end"]:
-            v_a[...], guarded = guarded_velocity(
-                t, v_h, self.altered, self.human, state["plan"], state["basis"], state["end"], self.dt, self.delta_pos
-            )
-            self.guarded_ticks += [t] * guarded
-            self.c.value[...] = equivalent_c(v_a, v_h, v_r)
-        elif state["end"] > 0:
-            v_a[...] = v_h + state["plan"][t] if t < state["end"] else 0.0
-            self.c.value[...] = equivalent_c(v_a, v_h, v_r)
-        elif math.isfinite(state["table_c"]):
-            self.c.value[...] = state["table_c"]
-            blend(state["table_c"], v_h, v_r, v_a)
-        else:
-            self.c.value[...] = 1.0
-            v_a[...] = v_h
-        v_a += self.v_u.value
+        signals = (self.v_h.value, self.v_r.value, self.v_a.value, state, self.altered, self.human)
+        self.c.value[...], guarded = emit_tick(t, *signals, self.dt, self.delta_pos, self.emit)
+        self.guarded_ticks += [t] * guarded
+        self.v_a.value[...] += self.v_u.value
 
     def update(self, k: int) -> None:
         t = k // self.every
@@ -370,6 +356,7 @@ class OptimalBlender(Block):
         lib, n = self.library, len(self.human)
         t0 = min(t + self.solve_ticks - 1, n - 1)
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
+        anchor = lib.velocity[nearest, t0 - 1] * (t0 > 0 and not at_rest)  # emit="plan": the prediction at t0 − 1
         # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
         # is enough: the altered movement may end before the human's, having covered the same distance sooner
         length = max(state["end"], int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
@@ -380,8 +367,7 @@ class OptimalBlender(Block):
         if not at_rest:
             predicted[t:] = lib.velocity[nearest, t:n]
         job = {"t": t, "t0": t0, "length": length, "predicted": predicted, "run": None, "problem": None,
-               "ticks": 0, "cpu": 0.0, "reference": reference,
-               "anchor": lib.velocity[nearest, t0 - 1] if t0 > 0 and not at_rest else np.zeros(3)}  # fmt: skip
+               "ticks": 0, "cpu": 0.0, "reference": reference, "anchor": anchor}  # fmt: skip
         if length <= t0:  # the planned movement is over: nothing left to decide
             return job
         if t0 > t:  # the ticks before t0 emit what the state in force emits, on the prediction
@@ -430,9 +416,8 @@ class OptimalBlender(Block):
                 out.update(plan=plan, end=length, table_c=math.nan, multipliers=multipliers)
                 if self.emit == "plan":  # re-anchored on what was emitted, so that v_a stays continuous
                     emitted = self.altered[t0 - 1] if t >= t0 > 0 else None
-                    plan, basis = rebased(plan, self.basis, job["predicted"], t0, problem["phi0"],
-                                          problem["u_prev"], emitted, job["anchor"])  # fmt: skip
-                    out.update(plan=plan, basis=basis)
+                    out["plan"], out["basis"] = rebased(plan, self.basis, job["predicted"], t0, problem["phi0"],
+                                                        problem["u_prev"], emitted, job["anchor"])  # fmt: skip
         state = {**self._in_force(), **new, **out}
         eps, distance = self._outcome(t, job["predicted"], state)
         now = time.thread_time()
@@ -495,14 +480,8 @@ class OptimalBlender(Block):
 
     def _emission(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> np.ndarray:
         """The movement emitted under ``state`` (the past, then from ``t`` on) if the human follows ``predicted``."""
-        future = predicted[t:]
-        if state["end"] > 0:  # emitting the plan, the future is its own prediction's, not this one's
-            future = (state["basis"][t:] if self.emit == "plan" else future) + state["plan"][t:]
-            future[max(state["end"] - t, 0) :] = 0.0
-        elif math.isfinite(state["table_c"]):
-            c = state["table_c"]
-            future = c * future + (1.0 - c) * self.library.velocity[int(self.reference.value), t : len(predicted)]
-        return np.concatenate([self.altered[:t], future])
+        reference = self.library.velocity[int(self.reference.value)]
+        return planned_movement(t, self.altered, predicted, state, reference, self.emit)
 
     def _outcome(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> tuple[float, float]:
         """ε̂ and terminal distance (mm) of the movement emitted under ``state`` if the human follows ``predicted``."""

@@ -116,7 +116,9 @@ def summarise(rows: list[dict[str, Any]], e_des: int) -> dict[str, Any]:
             "ensemble_judge": float(np.mean([r[side]["ensemble"] == e_des for r in planned])),
             "kinematic_judge": float(np.mean([r[side]["kinematic"] == e_des for r in planned])),
         }
-    out["flipped"] = int(sum(decides(r["planned"]["members"]) and not decides(r["emitted"]["members"]) for r in planned))
+    out["flipped"] = int(
+        sum(decides(r["planned"]["members"]) and not decides(r["emitted"]["members"]) for r in planned)
+    )
     diff = np.array([np.subtract(r["emitted"]["features"], r["planned"]["features"]) for r in planned])
     out["feature_abs_diff"] = {
         name: {"p50": float(np.median(np.abs(diff[:, j]))), "p90": float(np.percentile(np.abs(diff[:, j]), 90))}
