@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.amplification.blending import add_blending_ports, blend
+from cogblocks.amplification.blending import add_blending_ports
+from cogblocks.amplification.emission import EMISSIONS, emit_tick, planned_movement, rebased
 from cogblocks.amplification.encoder import (
     CLIP_HIGH,
     N_POINTS,
@@ -37,7 +38,7 @@ from cogblocks.amplification.encoder import (
 from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver
 from cogblocks.amplification.linearised import LinearisedSolver
 from cogblocks.amplification.members import StackedNetworks
-from cogblocks.amplification.plan import PlanResult, equivalent_c, plan_problem, sigmoid
+from cogblocks.amplification.plan import PlanResult, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
 from cogblocks.blocks.samples import plausible
@@ -158,6 +159,9 @@ class OptimalBlender(Block):
         distance from the subspace, so the plan stays near real movements of the class.
     realism : float
         Weight of that penalty against ``Σ‖u‖²`` (only with ``subspace``).
+    emit : {"human", "plan"}
+        What a plan emits: ``v_h + u`` (default) or the plan itself, its prediction plus ``u``, so that the
+        emitted movement is the checked one, under a terminal guard (:mod:`~cogblocks.amplification.emission`).
 
     Notes
     -----
@@ -192,6 +196,7 @@ class OptimalBlender(Block):
         realism: float = 30.0,
         solve_ticks: int = 1,
         iterations: int = 10,
+        emit: str = "human",
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -230,6 +235,7 @@ class OptimalBlender(Block):
                 f"with solver={self.solver!r}"
             )
         self.iterations = positive_int(self, "iterations", iterations)
+        self.emit = one_of(self, "emit", emit, EMISSIONS)
         self._delta = self.delta_pos - self.terminal_margin
         self.library = library
         self.networks = networks
@@ -245,12 +251,15 @@ class OptimalBlender(Block):
         self._job: dict[str, Any] | None = None  # a decision whose solve spans several ticks
         self._check_s = 0.0  # CPU seconds of the last outcome check: kept in reserve on a committing tick
         self.tick_ms: list[float] = []
+        self.guarded_ticks: list[int] = []
         n = library.max_len
         add_blending_ports(self)
         self.add_state("human", np.zeros((n, 3)))  # v_h received, by tick
         self.add_state("altered", np.zeros((n, 3)))  # v_a emitted, by tick
         self.add_state("plan", np.zeros((n, 3)))  # the correction u in force, by tick
         self.add_state("end", 0)  # its planned length L; 0: no plan yet
+        if self.emit == "plan":
+            self.add_state("basis", np.zeros((n, 3)))  # the prediction the plan in force was made on
         self.add_state("table_c", math.nan)  # the table's c while falling back to it
         self.add_state("handled", 0)  # decisions handled
         # of the constraints (one encoding constraint per network) and the slack's bound: warm start
@@ -270,6 +279,7 @@ class OptimalBlender(Block):
         super().reset()
         self.results = []
         self.tick_ms = []
+        self.guarded_ticks = []
         self._pending = None
         self._job = None
 
@@ -287,18 +297,11 @@ class OptimalBlender(Block):
             if "solving" in self._pending:  # a tick with a problem to solve (not a decision after the movement)
                 self._pending.pop("solving")
                 self.tick_ms.append((time.thread_time() - started) * 1e3)
-        state = {"plan": self.plan, "end": self.end, "table_c": self.table_c, **(self._pending or {})}
-        v_h, v_r, v_a = self.v_h.value, self.v_r.value, self.v_a.value
-        if state["end"] > 0:
-            v_a[...] = v_h + state["plan"][t] if t < state["end"] else 0.0
-            self.c.value[...] = equivalent_c(v_a, v_h, v_r)
-        elif math.isfinite(state["table_c"]):
-            self.c.value[...] = state["table_c"]
-            blend(state["table_c"], v_h, v_r, v_a)
-        else:
-            self.c.value[...] = 1.0
-            v_a[...] = v_h
-        v_a += self.v_u.value
+        state = {**self._in_force(), **(self._pending or {})}
+        signals = (self.v_h.value, self.v_r.value, self.v_a.value, state, self.altered, self.human)
+        self.c.value[...], guarded = emit_tick(t, *signals, self.dt, self.delta_pos, self.emit)
+        self.guarded_ticks += [t] * guarded
+        self.v_a.value[...] += self.v_u.value
 
     def update(self, k: int) -> None:
         t = k // self.every
@@ -326,7 +329,7 @@ class OptimalBlender(Block):
                     new["solving"] = True
                 new.update(self._finish(t, {}))
             new["handled"] = int(self.decisions.value)
-            self._job = self._begin(t, {"plan": self.plan, "end": self.end, "table_c": self.table_c, **new})
+            self._job = self._begin(t, {**self._in_force(), **new})
         job = self._job
         if job is None:
             return new
@@ -353,6 +356,7 @@ class OptimalBlender(Block):
         lib, n = self.library, len(self.human)
         t0 = min(t + self.solve_ticks - 1, n - 1)
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
+        anchor = lib.velocity[nearest, t0 - 1] * (t0 > 0 and not at_rest)  # emit="plan": the prediction at t0 − 1
         # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
         # is enough: the altered movement may end before the human's, having covered the same distance sooner
         length = max(state["end"], int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
@@ -363,7 +367,7 @@ class OptimalBlender(Block):
         if not at_rest:
             predicted[t:] = lib.velocity[nearest, t:n]
         job = {"t": t, "t0": t0, "length": length, "predicted": predicted, "run": None, "problem": None,
-               "ticks": 0, "cpu": 0.0, "reference": reference}  # fmt: skip
+               "ticks": 0, "cpu": 0.0, "reference": reference, "anchor": anchor}  # fmt: skip
         if length <= t0:  # the planned movement is over: nothing left to decide
             return job
         if t0 > t:  # the ticks before t0 emit what the state in force emits, on the prediction
@@ -410,7 +414,11 @@ class OptimalBlender(Block):
                 plan[t0:length] = problem["phi0"][:, None] * problem["u_prev"] + problem["phi"] @ w.reshape(3, -1).T
                 plan[length:] = 0.0
                 out.update(plan=plan, end=length, table_c=math.nan, multipliers=multipliers)
-        state = {"plan": self.plan, "end": self.end, "table_c": self.table_c, **new, **out}
+                if self.emit == "plan":  # re-anchored on what was emitted, so that v_a stays continuous
+                    emitted = self.altered[t0 - 1] if t >= t0 > 0 else None
+                    out["plan"], out["basis"] = rebased(plan, self.basis, job["predicted"], t0, problem["phi0"],
+                                                        problem["u_prev"], emitted, job["anchor"])  # fmt: skip
+        state = {**self._in_force(), **new, **out}
         eps, distance = self._outcome(t, job["predicted"], state)
         now = time.thread_time()
         self._check_s = now - checking
@@ -431,6 +439,11 @@ class OptimalBlender(Block):
         else:
             guess = np.zeros((len(knots), 3))
         return guess.T.reshape(-1) / _U_SCALE
+
+    def _in_force(self) -> dict[str, Any]:
+        """The state that decides what the block emits: the plan, its length, the table's c (and the plan's basis)."""
+        state = {"plan": self.plan, "end": self.end, "table_c": self.table_c}
+        return state | ({"basis": self.basis} if self.emit == "plan" else {})
 
     def _logit(self, x: np.ndarray) -> float:
         """The logit of the least favourable network for ``e_des`` (the minimum of ``sign·z``, times ``sign``)."""
@@ -467,14 +480,8 @@ class OptimalBlender(Block):
 
     def _emission(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> np.ndarray:
         """The movement emitted under ``state`` (the past, then from ``t`` on) if the human follows ``predicted``."""
-        future = predicted[t:]
-        if state["end"] > 0:
-            future = future + state["plan"][t:]
-            future[max(state["end"] - t, 0) :] = 0.0
-        elif math.isfinite(state["table_c"]):
-            c = state["table_c"]
-            future = c * future + (1.0 - c) * self.library.velocity[int(self.reference.value), t : len(predicted)]
-        return np.concatenate([self.altered[:t], future])
+        reference = self.library.velocity[int(self.reference.value)]
+        return planned_movement(t, self.altered, predicted, state, reference, self.emit)
 
     def _outcome(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> tuple[float, float]:
         """ε̂ and terminal distance (mm) of the movement emitted under ``state`` if the human follows ``predicted``."""

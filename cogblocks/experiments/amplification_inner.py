@@ -4,7 +4,7 @@ Usage::
 
     python -m cogblocks.experiments.amplification_inner --e-des 1 --limit 30 [--components 12]
         [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised] [--solve-ticks 1]
-        [--iterations 10] [--profile-members 2] [--kinematic-members 0]
+        [--iterations 10] [--profile-members 2] [--kinematic-members 0] [--emit human]
 
 The training part of the shipped encoder's split is split again, seeded and stratified
 (``ReachLibrary.split(0.3, 100)``); w̃ and the realism subspace are computed on the inner training
@@ -82,6 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--solver", default=defaults["solver"], choices=("linearised", "sqpmethod", "ipopt"))
     parser.add_argument("--solve-ticks", type=int, default=defaults.get("solve_ticks", 1))
     parser.add_argument("--iterations", type=int, default=defaults.get("iterations", 10))
+    parser.add_argument("--emit", default=defaults.get("emit", "human"), choices=("human", "plan"))
     parser.add_argument(
         "--profile-members",
         type=int,
@@ -97,7 +98,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms,
-               "solve_ticks": args.solve_ticks, "iterations": args.iterations}  # fmt: skip
+               "solve_ticks": args.solve_ticks, "iterations": args.iterations, "emit": args.emit}  # fmt: skip
     members = {"profile": args.profile_members, "kinematic": args.kinematic_members}
     row = evaluate(args.e_des, args.limit, args.components, members, solver=args.solver, **options)
     print(json.dumps({"e_des": args.e_des, "components": args.components, **options, "solver": args.solver,
