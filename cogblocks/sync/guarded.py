@@ -109,8 +109,9 @@ class GuardedPacingMotion(PacingMotion):
         self.add_state("next_due", 0)  # the tick the next decision is due at
         self.add_state("running", self.first_period)  # ticks of the period of the decision in progress
         self.add_state("held", 0)  # periods the alteration in progress has been applied since it was chosen
-        # The decision in progress, as numbers and arrays (a snapshot restores it; :attr:`job` works on it): what it
-        # started from, and its prediction's progress (StagedPrediction.progress; None while there is none).
+        # The decision in progress as numbers and arrays, meaningful while job_active (a snapshot restores it;
+        # :attr:`job` works on it): what it started from, and its prediction's progress (StagedPrediction.progress,
+        # whose arrays change shape at the fan-out: declared None, so that any shape loads).
         self.add_state("job_active", False)
         self.add_state("job_tick", -1)  # the tick the job's lead ends at
         self.add_state("job_omega", np.zeros(n))  # the model it predicts with; its pacing grid is built on ω

@@ -239,7 +239,7 @@ class ShieldedMotion(PacingMotion):
         self.predictor: L3Policy = cheaper() if callable(cheaper) else motion.policy
         self.add_state("theta_l3", 0.0)
         self.add_state("omega_prev", motion.omega_init)
-        # the prediction in progress, by fields (an idle one of the right shapes declares them)
+        # the prediction in progress by fields, meaningful while job_active (an idle one declares shapes and types)
         self.add_state("job_active", False)
         idle = PolicyRollout.start(np.zeros(self.n), 0.0, (0.0, 0.0), (np.zeros(self.n), 0.0), k=0, dt=0.0, steps=0)
         for name, value in idle.state().items():
