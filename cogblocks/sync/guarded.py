@@ -21,6 +21,7 @@ prediction through the blender on the group it identifies online, with two diffe
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -29,7 +30,7 @@ from cogblocks.blocks.angles import wrap_angle, wrap_pi
 from cogblocks.sim.params import finite_number, one_of, positive_int
 from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.pacing import _MODES, MEAN, NONE, PACE, PacingMotion
-from cogblocks.sync.staged import StagedPrediction
+from cogblocks.sync.staged import PROGRESS, StagedPrediction
 
 __all__ = ["COMMIT", "MARGIN", "GuardedPacingMotion", "phase_error"]
 
@@ -75,7 +76,9 @@ class GuardedPacingMotion(PacingMotion):
     Notes
     -----
     :attr:`errors` (every check's error) and :attr:`choices` are records since the last reset, not block
-    state; so is the decision in progress, which a reset drops.
+    state. The decision in progress is block state (the ``job_*`` entries, numbers and arrays, mirrored from
+    :attr:`job` at the end of every update), so that a diagram restored from a snapshot continues it bit for bit;
+    a reset drops it.
 
     Bad data policy: on a tick with a phase that is not finite and within one turn of [0, 2π), or a
     non-finite λ, nothing is identified; a decision in progress advances (it works on the state it started
@@ -106,9 +109,17 @@ class GuardedPacingMotion(PacingMotion):
         self.add_state("next_due", 0)  # the tick the next decision is due at
         self.add_state("running", self.first_period)  # ticks of the period of the decision in progress
         self.add_state("held", 0)  # periods the alteration in progress has been applied since it was chosen
+        # The decision in progress as numbers and arrays, meaningful while job_active (a snapshot restores it;
+        # :attr:`job` works on it): what it started from, and its prediction's progress (StagedPrediction.progress,
+        # whose arrays change shape at the fan-out: declared None, so that any shape loads).
+        self.add_state("job_active", False)
+        self.add_state("job_tick", -1)  # the tick the job's lead ends at
+        self.add_state("job_omega", np.zeros(n))  # the model it predicts with; its pacing grid is built on ω
+        self.add_state("job_gain", 0.0)
+        self.add_state("job_ref", 0.0)  # the reference emitted at its start
+        for name in PROGRESS:
+            self.add_state(f"job_{name}", 0 if name == "done_steps" else None)
         self.job: StagedPrediction | None = None
-        self.job_tick = -1  # the tick the job's lead ends at
-        self.job_omega = np.zeros(n)  # the frequencies the job's pacing grid was built on
         self.errors: list[float] = []
 
     @property
@@ -119,7 +130,17 @@ class GuardedPacingMotion(PacingMotion):
 
     def reset(self) -> None:
         super().reset()
-        self.job, self.job_tick, self.errors = None, -1, []
+        self.job, self.errors = None, []
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        super().load_state_dict(state)
+        self.job = None
+        if self.job_active:
+            # rebuilt from the state, then set to where it was (its first row stands in for the start it overwrites)
+            first = (float(self.job_kinds[0]), float(self.job_values[0]), float(self.job_anchors[0]))
+            model, lead_time = (self.job_omega, self.job_gain), self.running * (self.dt * self.every)
+            self.job = self._prediction(self.job_theta[0], float(self.job_lam[0]), first, model, lead_time)
+            self.job.resume({name: getattr(self, f"job_{name}") for name in PROGRESS})
 
     def update(self, k: int) -> None:
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
@@ -151,32 +172,57 @@ class GuardedPacingMotion(PacingMotion):
             self.job.advance(math.ceil(self.job.total_steps / self.running))
         if self.mode == PACE and not jumped:
             self.theta_ref_now = wrap_angle(self.theta_ref_now + dt * self.value)
+        self._keep_job()
+
+    def _keep_job(self) -> None:
+        """Mirror the decision in progress into the block's state (references, no copy: they follow its arrays)."""
+        self.job_active = self.job is not None
+        if self.job is not None:
+            for name, value in self.job.progress().items():
+                setattr(self, f"job_{name}", value)
 
     def _start(
         self, theta: np.ndarray, lam: float, ref: float, model: tuple[np.ndarray, float], k: int, dt: float
     ) -> None:
         """Start the decision that applies one period from now, from this tick's state."""
-        omega, gain = model
-        step = self._stable_step(gain)
-        lead_time = self.running * dt
-        lead_steps = min(self.max_steps, max(1, math.ceil(lead_time / step - 1e-9)))
         value = self.value if self.mode != NONE else 0.0
-        self.job = StagedPrediction(
+        self.job_tick = k + self.running
+        (self.job_omega, self.job_gain), self.job_ref = model, ref
+        self.job = self._prediction(theta, lam, (self.mode, value, ref), model, self.running * dt)
+
+    def _prediction(
+        self,
+        theta: np.ndarray,
+        lam: float,
+        lead: tuple[float, float, float],
+        model: tuple[np.ndarray, float],
+        lead_time: float,
+    ) -> StagedPrediction:
+        """The staged prediction of a decision started on ``theta`` and ``lam``, its lead ``lead_time`` s long."""
+        step = self._stable_step(model[1])
+        lead_steps = min(self.max_steps, max(1, math.ceil(lead_time / step - 1e-9)))
+        return StagedPrediction(
             theta,
             lam,
             model,
             self.adjacency,
             self.assisted,
             self.blender,
-            (self.mode, value, ref),
+            lead,
             lead_time=lead_time,
             lead_steps=lead_steps,
-            fan_out=lambda th, _lam: self.candidates(th, self._model_reference(th, ref, lead_time), omega, 0.0),
+            fan_out=self._fan_out,
             step=step,
             steps=min(self.max_steps, max(1, round(self.horizon / step))),
         )
-        self.job_tick = k + self.running
-        self.job_omega = omega
+
+    def _fan_out(self, theta: np.ndarray, _lam: float) -> tuple[np.ndarray, ...]:
+        """The candidates of the decision in progress, from the phases ``theta`` predicted at its lead's end.
+
+        A method reading the block's state, not a closure: a snapshot or a copy of the block resumes it.
+        """
+        lead_time = self.running * (self.dt * self.every)
+        return self.candidates(theta, self._model_reference(theta, self.job_ref, lead_time), self.job_omega, 0.0)
 
     def _model_reference(self, theta: np.ndarray, ref: float, elapsed: float) -> float:
         """The reference the current mode emits on the predicted phases ``theta``, ``elapsed`` s after ``ref``."""

@@ -161,7 +161,11 @@ class MPCMotion(_MotionPorts):
 
     Notes
     -----
-    :attr:`solve_ms` and :attr:`tick_ms` are records since the last reset, not block state.
+    :attr:`solve_ms` and :attr:`tick_ms` are records since the last reset, not block state. The decision in
+    progress is block state (the plan, the solve's iterate, bound multipliers, box and parameters: IPOPT keeps
+    nothing between chunks), so a diagram restored from a snapshot (``state_dict`` or ``save_state``) continues bit
+    for bit, as far as the run itself is reproducible: a chunk that ``time_limit_ms`` stops ends where the
+    machine's speed lets it, in a continued run as in any other.
 
     Bad data policy: on a tick with a phase that is not finite and within one turn of [0, 2π), or a
     non-finite λ, nothing is identified or decided and θ_ref keeps integrating the committed frequency
@@ -297,7 +301,7 @@ class MPCMotion(_MotionPorts):
         if model is not None or working:
             ms = (time.thread_time() - start) * 1e3
             self.tick_ms.append(ms)
-            if model is not None:
+            if model is not None or not self.solve_ms:  # a new decision, or one restored mid-solve from a snapshot
                 self.solve_ms.append(ms)
             else:
                 self.solve_ms[-1] += ms

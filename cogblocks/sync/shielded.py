@@ -25,6 +25,7 @@ tick, and its decision applies from the next period's first tick.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -59,7 +60,8 @@ _IDLE = (np.array([NONE, NONE]), np.zeros(2), np.zeros(2))
 class PolicyRollout:
     """The state of one prediction: doing nothing (row 0) and following the policy (row 1), side by side.
 
-    Plain data (block state, so a snapshot of the diagram holds it); :meth:`ShieldedMotion.advance_rollout` runs it.
+    Plain data, :meth:`ShieldedMotion.advance_rollout` runs it. A block keeps it as declared state through
+    :meth:`state` (numbers and arrays, which a snapshot file holds) and :meth:`from_state`.
 
     Attributes
     ----------
@@ -120,6 +122,18 @@ class PolicyRollout:
         lam = np.full(2, float(lam))
         return cls(theta, lam, np.array(oscillator, dtype=float), model, k, dt, steps, backup_steps, backup_step)
 
+    def state(self) -> dict[str, Any]:
+        """The rollout as numbers and arrays (no copy): its fields, the model split into ``omega`` and ``gain``."""
+        fields = {name: value for name, value in vars(self).items() if name != "model"}
+        return fields | {"omega": self.model[0], "gain": self.model[1]}
+
+    @classmethod
+    def from_state(cls, state: Mapping[str, Any]) -> PolicyRollout:
+        """The rollout :meth:`state` returned (its arrays copied)."""
+        fields = {name: np.array(value) if isinstance(value, np.ndarray) else value for name, value in state.items()}
+        model = (fields.pop("omega"), fields.pop("gain"))
+        return cls(model=model, **fields)
+
     @property
     def following_done(self) -> bool:
         """The part under the policy is predicted (the backup part, if any, may remain)."""
@@ -175,7 +189,8 @@ class ShieldedMotion(PacingMotion):
     -----
     :attr:`predictions` (the scores ``(nothing, policy)`` of every decision) and :attr:`choices` (``NONE`` or
     :data:`FOLLOW` per decision) are records since the last reset, not block state. The prediction in progress
-    (:attr:`job`) is block state.
+    (:attr:`job`) is block state: the ``job_*`` entries (:meth:`PolicyRollout.state`, mirrored at the end of every
+    update), so that a diagram restored from a snapshot continues it bit for bit.
 
     Bad data policy: on a tick with a phase that is not finite and within one turn of [0, 2π), or a non-finite
     λ, nothing is identified or decided (a decision due then is taken at the next good tick) and the policy is
@@ -224,7 +239,13 @@ class ShieldedMotion(PacingMotion):
         self.predictor: L3Policy = cheaper() if callable(cheaper) else motion.policy
         self.add_state("theta_l3", 0.0)
         self.add_state("omega_prev", motion.omega_init)
-        self.add_state("job", None)
+        # the prediction in progress by fields, meaningful while job_active (an idle one declares shapes and types)
+        self.add_state("job_active", False)
+        idle = PolicyRollout.start(np.zeros(self.n), 0.0, (0.0, 0.0), (np.zeros(self.n), 0.0), k=0, dt=0.0, steps=0)
+        for name, value in idle.state().items():
+            self.add_state(f"job_{name}", value)
+        self._job_fields = tuple(idle.state())
+        self.job: PolicyRollout | None = None
         self.predictions: list[tuple[float, float]] = []
 
     def reset(self) -> None:
@@ -232,7 +253,12 @@ class ShieldedMotion(PacingMotion):
         self.motion.reset()  # the policy's episode memory
         if self.predictor is not self.motion.policy and hasattr(self.predictor, "reset"):
             self.predictor.reset(self.motion.omega_init)
-        self.predictions = []
+        self.job, self.predictions = None, []
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        super().load_state_dict(state)
+        fields = {name: getattr(self, f"job_{name}") for name in self._job_fields}
+        self.job = PolicyRollout.from_state(fields) if self.job_active else None
 
     def output(self, k: int) -> None:
         if self.mode == FOLLOW:
@@ -273,6 +299,14 @@ class ShieldedMotion(PacingMotion):
                 )
             else:
                 self.advance_rollout(self.job, math.ceil(self.job.steps / self.decide_every))
+        self._keep_job()
+
+    def _keep_job(self) -> None:
+        """Mirror the prediction in progress into the block's state (references, no copy: they follow its arrays)."""
+        self.job_active = self.job is not None
+        if self.job is not None:
+            for name, value in self.job.state().items():
+                setattr(self, f"job_{name}", value)
 
     def _rollout(
         self, theta: np.ndarray, lam: float, model: tuple[np.ndarray, float], k: int, dt: float

@@ -11,20 +11,27 @@
 
 A decision started at one period's first tick is then ready at the next period's first tick, with a cost
 per tick of ``ceil(total steps / period ticks)`` Euler steps over at most the number of candidates.
+
+What a prediction has computed so far is plain arrays and a count (:meth:`StagedPrediction.progress`), so that a
+block can keep it as declared state and resume it after a snapshot (:meth:`StagedPrediction.resume`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 
 from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.pacing import euler_step
 
-__all__ = ["StagedPrediction"]
+__all__ = ["PROGRESS", "StagedPrediction"]
 
 Candidates = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+#: Names of what :meth:`StagedPrediction.progress` returns: everything an advance changes.
+PROGRESS = ("theta", "lam", "kinds", "values", "anchors", "total", "lead_theta", "done_steps")
 
 
 class StagedPrediction:
@@ -46,7 +53,8 @@ class StagedPrediction:
         Euler steps of the lead.
     fan_out : callable
         ``fan_out(theta, lam) -> (kinds, values, anchors)``: the candidates, anchored at the lead's end, from
-        the predicted state there.
+        the predicted state there. A bound method of a block rather than a closure, if the block is to be
+        copied or resumed from a snapshot: what it needs must be in the block's state.
     step : float
         Euler step (s) of the fan-out.
     steps : int
@@ -120,6 +128,38 @@ class StagedPrediction:
             self.done_steps += 1
             if self.done_steps == self.lead_steps:
                 self._fan_out()
+
+    def progress(self) -> dict[str, np.ndarray | int]:
+        """What the prediction has computed so far (no copy), by the names of :data:`PROGRESS`.
+
+        ``theta`` (rows, N), ``lam``, ``kinds``, ``values``, ``anchors`` and ``total`` (rows,) are the rows being
+        predicted (the lead's one row, then the candidates), ``lead_theta`` (N,) the phases at the lead's end (NaN
+        before it), ``done_steps`` the Euler steps done.
+        """
+        kinds, values, anchors = self.rows
+        lead_theta = np.full(self.theta.shape[1], np.nan) if self.lead_theta is None else self.lead_theta
+        return {
+            "theta": self.theta,
+            "lam": self.lam,
+            "kinds": kinds,
+            "values": values,
+            "anchors": anchors,
+            "total": self.total,
+            "lead_theta": lead_theta,
+            "done_steps": self.done_steps,
+        }
+
+    def resume(self, progress: Mapping[str, Any]) -> None:
+        """Continue from what :meth:`progress` returned, on a prediction started with the same arguments.
+
+        The arrays are copied: the prediction then advances on its own, as the one it was taken from would.
+        """
+        self.theta, self.lam, self.total = (np.array(progress[name], dtype=float) for name in ("theta", "lam", "total"))
+        self.rows = tuple(np.array(progress[name], dtype=float) for name in ("kinds", "values", "anchors"))
+        self.done_steps = int(progress["done_steps"])
+        fanned_out = self.done_steps >= self.lead_steps
+        self.lead_theta = np.array(progress["lead_theta"], dtype=float) if fanned_out else None
+        self.candidates = self.rows if fanned_out else None
 
     def _fan_out(self) -> None:
         self.lead_theta = self.theta[0].copy()
