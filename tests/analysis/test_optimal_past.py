@@ -12,6 +12,8 @@ from cogblocks.amplification.linearised import LinearisedRun
 from cogblocks.amplification.plan import plan_problem, with_past
 from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
 from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
+from cogblocks.experiments.amplification_gap import planned_vs_emitted, summarise
+from cogblocks.experiments.amplification_inner import inner_setup
 from cogblocks.sim import Simulator
 
 torch.set_num_threads(1)
@@ -185,3 +187,11 @@ def test_the_refresh_is_inside_the_tick_budget(setup, networks, monkeypatch):
     for track in (False, True):
         assert ticks[track].max() <= 6.0 + 1.0 + 4.0 + 1e-9
     assert len(ticks[True]) >= len(ticks[False])  # every tick of a spread solve works on it now
+
+
+def test_gap_tool_counts_the_plans_failing_at_their_commit():
+    rows = planned_vs_emitted(inner_setup(0), 1, time_limit_ms=1000.0, track_past=True)
+    assert rows[0]["committed"] >= rows[0]["failing_at_commit"] >= 0 and rows[0]["committed"] > 0
+    two = [{**rows[0], "committed": 5, "failing_at_commit": 2}, {**rows[0], "committed": 3, "failing_at_commit": 0}]
+    out = summarise(two, 0)
+    assert (out["committed"], out["failing_at_commit"]) == (8, 2)
