@@ -19,7 +19,7 @@ from cogblocks.amplification.encoder import (
 )
 from cogblocks.sim.params import positive_int
 
-__all__ = ["encoder_to_casadi", "ensemble_logits", "input_map"]
+__all__ = ["encoder_to_casadi", "ensemble_logits", "input_map", "solve_decision"]
 
 _U_SCALE = 100.0  # mm/s: knots are solved in units of 100 mm/s, so that they are of order one
 _PENALTY = 1e3  # weight of the encoding slack (per logit unit) against the correction's cost
@@ -245,3 +245,38 @@ def _solver(
     solver = _Solver(ca.nlpsol(f"optimal_blending_{m}", method, nlp, options), deadline)
     _SOLVERS[cache_key] = solver
     return solver
+
+
+def solve_decision(blender: Any, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
+    """Knots (None: fall back), multipliers and status of one casadi solve of ``blender``'s decision.
+
+    ``blender`` is the :class:`~cogblocks.amplification.OptimalBlender` whose networks, settings and
+    multipliers (the dual's warm start) the solve uses.
+    ``problem`` is the decision's (:func:`~cogblocks.amplification.plan.plan_problem`), ``w0`` the warm start.
+    """
+    members, m = len(blender.networks), len(w0)
+    solver = _solver(blender.networks, blender._key, m, blender.solver, blender.time_limit_ms / 1e3, blender.sharpness)
+    slack = max(blender._z_target - blender._sign * blender._logit(problem["x0"] + problem["A"] @ w0), 0.0)
+    if solver.deadline is not None:
+        solver.deadline.start(blender.time_limit_ms / 1e3)
+    out = solver.function(
+        x0=np.r_[w0, slack],
+        p=np.concatenate([np.ravel(problem[k], order="F") for k in ("A", "x0", "H", "q", "C", "g0", "d", "rhs")]),
+        lbx=np.r_[np.full(m, -np.inf), 0.0],
+        ubx=np.inf,
+        lbg=np.r_[np.zeros(members), -np.inf, 0.0],
+        ubg=np.r_[np.full(members, np.inf), 0.0, np.inf],
+        lam_g0=blender.multipliers[: members + 2],
+        lam_x0=np.r_[np.zeros(m), blender.multipliers[members + 2]],
+    )
+    x = np.asarray(out["x"]).ravel()
+    multipliers = np.r_[np.asarray(out["lam_g"]).ravel(), np.asarray(out["lam_x"]).ravel()[-1]]
+    w = x[:-1]
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(multipliers))):
+        return None, multipliers, "fallback"
+    if solver.function.stats()["success"]:
+        return w, multipliers, "converged"
+    z = blender._sign * blender._logit(problem["x0"] + problem["A"] @ w)
+    if z > blender._z_clip and np.linalg.norm(problem["g0"] + problem["C"] @ w) <= blender.delta_pos:
+        return w, multipliers, "accepted"
+    return None, multipliers, "fallback"

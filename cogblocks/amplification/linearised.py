@@ -252,6 +252,32 @@ class LinearisedRun:
         """The kept plan variables (None: none acceptable), the status and the iterations run so far."""
         return self.best, self.status, self.done
 
+    def update(self, p: dict[str, Any]) -> None:
+        """Continue from the current iterate on ``p``, the problem with a new fixed part (the same ``A``, ``H``, ``C``).
+
+        The merit and the linearisation are taken at the current iterate on ``p``; the kept iterate stays
+        only if it is acceptable on ``p`` too (with its cost on ``p``), and a converged run resumes, so that
+        the result is judged on the problem it will be used for.
+        """
+        self.p = p
+        if self._factor is not None:  # H is unchanged: the factor stays
+            self.merit, self._linear = self.solver._merit(p, self.w, self.z_target, self.delta)
+        if self.best is None:
+            return
+        x, _ = network_input(p, self.best)
+        reached, cost, within = self._assess(self.best, self.solver.logits(x)[0])
+        if reached > self.z_clip and within:
+            self.best_cost, self.status = cost, "accepted"
+        else:
+            self.best, self.best_cost, self.status = None, np.inf, "fallback"
+
+    def _assess(self, w: np.ndarray, z: np.ndarray) -> tuple[float, float, bool]:
+        """The least favourable member's ``sign·z``, the cost and whether the gap is within ``delta_pos``, at ``w``."""
+        p = self.p
+        reached = float((self.solver.sign * z).min())
+        cost = float(w @ p["H"] @ w + 2.0 * p["q"] @ w)
+        return reached, cost, bool(np.linalg.norm(p["g0"] + p["C"] @ w) <= self.delta_pos)
+
     def _prepare(self) -> None:
         p, m = self.p, len(self.w)
         self.mu = self.solver.proximal * max(np.trace(p["H"]) / m, 1e-12)
@@ -296,10 +322,7 @@ class LinearisedRun:
             self.w = w
             self.done += 1
             ran += 1
-            z = self._linear[0]
-            reached = float((solver.sign * z).min())
-            cost = float(w @ p["H"] @ w + 2.0 * p["q"] @ w)
-            within = np.linalg.norm(g0 + c @ w) <= self.delta_pos
+            reached, cost, within = self._assess(w, self._linear[0])
             if reached > self.z_clip and within and cost < self.best_cost:
                 improved = cost < self.best_cost - 1e-3 * abs(self.best_cost)
                 self.best, self.best_cost = w.copy(), cost

@@ -35,16 +35,17 @@ from cogblocks.amplification.encoder import (
     movement_length,
     resampling_matrix,
 )
-from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver
+from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, solve_decision
 from cogblocks.amplification.linearised import LinearisedSolver
 from cogblocks.amplification.members import StackedNetworks
+from cogblocks.amplification.past import follow_past
 from cogblocks.amplification.plan import PlanResult, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
 from cogblocks.blocks.samples import plausible
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim import Block
-from cogblocks.sim.params import finite_number, one_of, positive_int
+from cogblocks.sim.params import finite_number, flag, one_of, positive_int
 
 __all__ = ["OptimalBlender", "PlanResult"]
 
@@ -162,6 +163,10 @@ class OptimalBlender(Block):
     emit : {"human", "plan"}
         What a plan emits: ``v_h + u`` (default) or the plan itself, its prediction plus ``u``, so that the
         emitted movement is the checked one, under a terminal guard (:mod:`~cogblocks.amplification.emission`).
+    track_past : bool
+        With ``solve_ticks`` > 1 (linearised only): every tick of a spread solve puts the past emitted so far
+        into its problem in place of the prediction, the iterations going on from there
+        (:mod:`~cogblocks.amplification.past`).
 
     Notes
     -----
@@ -197,6 +202,7 @@ class OptimalBlender(Block):
         solve_ticks: int = 1,
         iterations: int = 10,
         emit: str = "human",
+        track_past: bool = False,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -236,6 +242,9 @@ class OptimalBlender(Block):
             )
         self.iterations = positive_int(self, "iterations", iterations)
         self.emit = one_of(self, "emit", emit, EMISSIONS)
+        self.track_past = flag(self, "track_past", track_past)
+        if self.track_past and self.solver != "linearised":
+            raise ValueError(f"OptimalBlender: track_past needs solver='linearised', got solver={self.solver!r}")
         self._delta = self.delta_pos - self.terminal_margin
         self.library = library
         self.networks = networks
@@ -337,6 +346,9 @@ class OptimalBlender(Block):
         commit = t >= job["t0"] or job["problem"] is None
         if job["problem"] is not None and (commit or job["ticks"] == 1):
             new["solving"] = True  # building, checking: ticks that only wait for the plan's tick are not counted
+        if self.track_past and job["run"] is not None and job["ticks"] > 1:
+            follow_past(self, job, t)  # the ticks since the decision were emitted: the solve goes on with them
+            new["solving"] = True
         if job["run"] is not None and not job["run"].finished:
             # on the committing tick the last check's time stays in reserve; a decision never left without
             # any iteration (as the single-tick solve, which always runs one)
@@ -450,33 +462,8 @@ class OptimalBlender(Block):
         return float(self._sign * np.min(self._sign * self._stack.logits(x)))
 
     def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
-        """Knots (None: fall back), multipliers and status of one solve."""
-        members, m = len(self.networks), len(w0)
-        solver = _solver(self.networks, self._key, m, self.solver, self.time_limit_ms / 1e3, self.sharpness)
-        slack = max(self._z_target - self._sign * self._logit(problem["x0"] + problem["A"] @ w0), 0.0)
-        if solver.deadline is not None:
-            solver.deadline.start(self.time_limit_ms / 1e3)
-        out = solver.function(
-            x0=np.r_[w0, slack],
-            p=np.concatenate([np.ravel(problem[k], order="F") for k in ("A", "x0", "H", "q", "C", "g0", "d", "rhs")]),
-            lbx=np.r_[np.full(m, -np.inf), 0.0],
-            ubx=np.inf,
-            lbg=np.r_[np.zeros(members), -np.inf, 0.0],
-            ubg=np.r_[np.full(members, np.inf), 0.0, np.inf],
-            lam_g0=self.multipliers[: members + 2],
-            lam_x0=np.r_[np.zeros(m), self.multipliers[members + 2]],
-        )
-        x = np.asarray(out["x"]).ravel()
-        multipliers = np.r_[np.asarray(out["lam_g"]).ravel(), np.asarray(out["lam_x"]).ravel()[-1]]
-        w = x[:-1]
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(multipliers))):
-            return None, multipliers, "fallback"
-        if solver.function.stats()["success"]:
-            return w, multipliers, "converged"
-        z = self._sign * self._logit(problem["x0"] + problem["A"] @ w)
-        if z > self._z_clip and np.linalg.norm(problem["g0"] + problem["C"] @ w) <= self.delta_pos:
-            return w, multipliers, "accepted"
-        return None, multipliers, "fallback"
+        """Knots (None: fall back), multipliers and status of one casadi solve (:func:`solve_decision`)."""
+        return solve_decision(self, problem, w0)
 
     def _emission(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> np.ndarray:
         """The movement emitted under ``state`` (the past, then from ``t`` on) if the human follows ``predicted``."""

@@ -28,7 +28,7 @@ from cogblocks.amplification.encoder_casadi import _U_SCALE
 from cogblocks.amplification.kinematics import PlanKinematics
 from cogblocks.amplification.subspace import MovementSubspace
 
-__all__ = ["PlanResult", "equivalent_c", "knot_basis", "plan_problem", "sigmoid"]
+__all__ = ["PlanResult", "equivalent_c", "knot_basis", "plan_problem", "sigmoid", "with_past"]
 
 
 @dataclass(frozen=True)
@@ -111,40 +111,79 @@ def plan_problem(
     problem holds the plan's kinematic features as ``"kinematics"``
     (:class:`~cogblocks.amplification.kinematics.PlanKinematics` of the movement lasting ``length`` samples).
     """
-    sign, z_target, end_speed, delta = rhs
-    u_prev = altered[t - 1] - human[t - 1] if t > 0 else np.zeros(3)
     knots, phi0, phi, axis_map = knot_basis(t, length, knot_spacing)
-    n = phi.shape[1]
-    resample = resampling_matrix(length)
-    base = np.concatenate([altered[:t], predicted[t:length] + phi0[:, None] * u_prev])
-    reach = human[:t].sum(axis=0)
-    if not np.linalg.norm(reach) > 0.0:
-        reach = reference.sum(axis=0)
-    direction = reach / max(np.linalg.norm(reach), 1e-12)
-    speed = np.zeros((3, n))
-    speed[:, -1] = _U_SCALE * direction  # the last knot's speed along the reach direction
     # knots, axis-major: x = x0 + A w, cost wᵀ H w + 2 qᵀ w, gap g0 + C w, last speed dᵀ w
     problem = {
-        "x0": (resample @ base).T.reshape(-1),
         "A": np.kron(np.eye(3), axis_map),
         "H": np.kron(np.eye(3), phi.T @ phi / _U_SCALE**2),  # the cost Σ‖u‖² in units of _U_SCALE²
-        "q": ((phi.T @ phi0)[None, :] * u_prev[:, None] / _U_SCALE**2).ravel(),
         "C": np.kron(np.eye(3), dt * phi.sum(axis=0)),
-        "g0": dt * ((altered[:t] - human[:t]).sum(axis=0) + phi0.sum() * u_prev - predicted[length:].sum(axis=0)),
-        "d": speed.ravel(),
-        "rhs": [sign, z_target, end_speed - direction @ predicted[length - 1], delta],
         "knots": knots[1:],
         "phi": phi,
         "phi0": phi0,
-        "u_prev": u_prev,
     }
-    if kinematics:
-        problem["kinematics"] = PlanKinematics(base, t, phi, dt)
+    problem.update(_past_terms(problem, t, length, predicted, altered, human, reference, dt, rhs, kinematics))
     if subspace is not None:  # penalise the altered movement's distance from realistic movements
         h, q = subspace.penalty(problem["A"], problem["x0"])
         problem["H"] = problem["H"] + realism * h / _U_SCALE**2
         problem["q"] = problem["q"] + realism * q / _U_SCALE**2
     return problem
+
+
+def with_past(
+    problem: dict[str, Any],
+    t: int,
+    length: int,
+    predicted: np.ndarray,
+    altered: np.ndarray,
+    human: np.ndarray,
+    reference: np.ndarray,
+    dt: float,
+    rhs: list[float],
+    subspace: MovementSubspace | None = None,
+    realism: float = 0.0,
+) -> dict[str, Any]:
+    """``problem`` (a :func:`plan_problem` from ``t`` for ``length`` samples) for another past, as a new dict.
+
+    The knots act from ``t`` on, so a new past (``altered`` and ``human`` before ``t``) changes only the
+    problem's fixed part: ``x0``, ``q``, ``g0``, ``d``, ``rhs``, ``u_prev`` and the kinematics' base; ``A``,
+    ``H``, ``C`` and the basis are shared with ``problem``. The arguments are :func:`plan_problem`'s (the
+    same ``predicted``, ``reference``, ``rhs``, ``subspace`` and ``realism`` give the same problem).
+    """
+    new = dict(problem)
+    kinematics = "kinematics" in problem
+    new.update(_past_terms(problem, t, length, predicted, altered, human, reference, dt, rhs, kinematics))
+    if subspace is not None:  # the penalty's quadratic part depends on A only
+        _, q = subspace.penalty(problem["A"], new["x0"])
+        new["q"] = new["q"] + realism * q / _U_SCALE**2
+    return new
+
+
+def _past_terms(
+    problem: dict[str, Any], t: int, length: int, predicted: np.ndarray, altered: np.ndarray, human: np.ndarray,
+    reference: np.ndarray, dt: float, rhs: list[float], kinematics: bool,
+) -> dict[str, Any]:  # fmt: skip
+    """The entries of a plan's problem that depend on the past before ``t`` (``q`` without the realism penalty)."""
+    sign, z_target, end_speed, delta = rhs
+    phi, phi0 = problem["phi"], problem["phi0"]
+    u_prev = altered[t - 1] - human[t - 1] if t > 0 else np.zeros(3)
+    base = np.concatenate([altered[:t], predicted[t:length] + phi0[:, None] * u_prev])
+    reach = human[:t].sum(axis=0)
+    if not np.linalg.norm(reach) > 0.0:
+        reach = reference.sum(axis=0)
+    direction = reach / max(np.linalg.norm(reach), 1e-12)
+    speed = np.zeros((3, phi.shape[1]))
+    speed[:, -1] = _U_SCALE * direction  # the last knot's speed along the reach direction
+    terms = {
+        "x0": (resampling_matrix(length) @ base).T.reshape(-1),
+        "q": ((phi.T @ phi0)[None, :] * u_prev[:, None] / _U_SCALE**2).ravel(),
+        "g0": dt * ((altered[:t] - human[:t]).sum(axis=0) + phi0.sum() * u_prev - predicted[length:].sum(axis=0)),
+        "d": speed.ravel(),
+        "rhs": [sign, z_target, end_speed - direction @ predicted[length - 1], delta],
+        "u_prev": u_prev,
+    }
+    if kinematics:
+        terms["kinematics"] = PlanKinematics(base, t, phi, dt)
+    return terms
 
 
 def sigmoid(z: float) -> float:

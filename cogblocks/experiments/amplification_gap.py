@@ -2,15 +2,17 @@
 
 Usage::
 
-    python -m cogblocks.experiments.amplification_gap --e-des 0 --limit 30 [--emit human|plan]
+    python -m cogblocks.experiments.amplification_gap --e-des 0 --limit 30 [--emit human|plan] [--track-past 0|1]
 
 Each plan is checked on the movement the block *would* emit if the human followed the prediction (the
 emitted past, then the plan in force). On the inner split
 (:func:`~cogblocks.experiments.amplification_inner.inner_setup`, the blender as :data:`OPTIMISED`), this
 replays the first ``limit`` inner movements and compares, per movement, that checked movement of the last
 committed plan with the movement actually emitted: the constrained networks' ε̂ on both, the judges'
-decisions on both and the six kinematic features of both. Prints one JSON line (``--per-movement`` adds
-every movement's row).
+decisions on both and the six kinematic features of both; and, over every committed plan, how many fail
+their own encoding constraint when committed (the least favourable constrained network's ε̂ of the check at
+the commit, on the past actually emitted, not beyond the clipping threshold). Prints one JSON line
+(``--per-movement`` adds every movement's row).
 """
 
 from __future__ import annotations
@@ -75,6 +77,7 @@ def planned_vs_emitted(setup: AmplificationSetup, limit: int, **options: Any) ->
         trace = Simulator(d).run(n_steps=setup.library.max_len)
         emitted = np.asarray(trace["v_a"], dtype=np.float64)
         committed = [i for i, r in enumerate(blender.results) if r.status in ("converged", "accepted")]
+        failing = [i for i in committed if not _clipped(blender.results[i].eps, setup.e_des)]
         planned = blender.checked[committed[-1]] if committed else None
         movements = np.stack([emitted, emitted if planned is None else planned])
         decisions = judges.decide(movements)
@@ -91,9 +94,16 @@ def planned_vs_emitted(setup: AmplificationSetup, limit: int, **options: Any) ->
                 "kinematic": int(decisions["kinematic"][0]), "features": features[0].tolist(),
             },
             "last_commit_tick": int(blender.results[committed[-1]].tick) if committed else None,
+            "committed": len(committed),
+            "failing_at_commit": len(failing),
             "guarded_ticks": len(blender.guarded_ticks),
         })  # fmt: skip
     return rows
+
+
+def _clipped(eps: float, e_des: int) -> bool:
+    """Whether ``eps`` decides ``e_des`` by the clipping rule (ε̂ > 0.9, or < 0.1)."""
+    return bool(eps > 0.9) if e_des else bool(eps < 0.1)
 
 
 def summarise(rows: list[dict[str, Any]], e_des: int) -> dict[str, Any]:
@@ -102,12 +112,13 @@ def summarise(rows: list[dict[str, Any]], e_des: int) -> dict[str, Any]:
     ``all_members``: every constrained network decides ``e_des`` by the clipping rule (ε̂ > 0.9, < 0.1);
     ``flipped``: movements on which they do for the plan but not for the emitted movement.
     ``feature_abs_diff``: per feature, the median and the 90th percentile of |emitted − planned|.
+    ``committed``, ``failing_at_commit``: committed plans in all, and those failing their encoding constraint
+    at the commit (rows without these counts are left out of them).
     """
     planned = [r for r in rows if r["planned"] is not None]
 
     def decides(eps: list[float]) -> bool:
-        eps_array = np.asarray(eps)
-        return bool(np.all(eps_array > 0.9) if e_des else np.all(eps_array < 0.1))
+        return all(_clipped(e, e_des) for e in eps)
 
     out: dict[str, Any] = {"n": len(rows), "with_plan": len(planned)}
     for side in ("planned", "emitted"):
@@ -126,6 +137,8 @@ def summarise(rows: list[dict[str, Any]], e_des: int) -> dict[str, Any]:
     }
     out["velocity_max_abs_diff_p50"] = float(np.median([r["planned"]["max_abs_diff"] for r in planned]))
     out["guarded_ticks"] = int(sum(r["guarded_ticks"] for r in rows))
+    out["committed"] = int(sum(r.get("committed", 0) for r in rows))
+    out["failing_at_commit"] = int(sum(r.get("failing_at_commit", 0) for r in rows))
     return out
 
 
@@ -135,11 +148,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--e-des", type=int, choices=(0, 1), default=0)
     parser.add_argument("--limit", type=int, default=30, help="inner movements replayed (default 30)")
     parser.add_argument("--emit", choices=("human", "plan"), default=OPTIMISED.get("emit", "human"))
+    parser.add_argument("--track-past", type=int, choices=(0, 1), default=int(OPTIMISED.get("track_past", False)))
     parser.add_argument("--per-movement", action="store_true", help="print every movement's row too")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    rows = planned_vs_emitted(inner_setup(args.e_des), args.limit, emit=args.emit)
-    out = {"e_des": args.e_des, "limit": args.limit, "emit": args.emit, **summarise(rows, args.e_des)}
+    options = {"emit": args.emit, "track_past": bool(args.track_past)}
+    rows = planned_vs_emitted(inner_setup(args.e_des), args.limit, **options)
+    out = {"e_des": args.e_des, "limit": args.limit, **options, **summarise(rows, args.e_des)}
     if args.per_movement:
         out["rows"] = rows
     print(json.dumps(out))

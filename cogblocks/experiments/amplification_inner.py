@@ -4,14 +4,16 @@ Usage::
 
     python -m cogblocks.experiments.amplification_inner --e-des 1 --limit 30 [--components 12]
         [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised] [--solve-ticks 1]
-        [--iterations 10] [--profile-members 2] [--kinematic-members 0] [--emit human]
+        [--iterations 10] [--profile-members 2] [--kinematic-members 0] [--emit human] [--track-past 0|1]
 
 The training part of the shipped encoder's split is split again, seeded and stratified
 (``ReachLibrary.split(0.3, 100)``); w̃ and the realism subspace are computed on the inner training
 part, and the first ``limit`` inner movements that do not encode ``e_des`` are replayed through the
 optimised blender (the blender ensemble, as ``cogblocks run amplification``) and scored by the
 shipped judges. The inner movements were in the training data of the networks and judges, so the
-shares only rank settings (docs/pop-amplification.md, "Realistic plans"). Prints one JSON line.
+shares only rank settings (docs/pop-amplification.md, "Realistic plans"). Prints one JSON line: the
+settings (``solve_ticks`` among them), then the row, whose count of ticks that worked on a decision is
+``ticks_worked`` (``solve_ticks`` in :func:`~cogblocks.diagrams.amplification.run_amplification`'s row).
 """
 
 from __future__ import annotations
@@ -84,6 +86,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--iterations", type=int, default=defaults.get("iterations", 10))
     parser.add_argument("--emit", default=defaults.get("emit", "human"), choices=("human", "plan"))
     parser.add_argument(
+        "--track-past", type=int, choices=(0, 1), default=int(defaults.get("track_past", False)),
+        help="1: the spread solve follows the emitted past (OptimalBlender(track_past=True))",
+    )  # fmt: skip
+    parser.add_argument(
         "--profile-members",
         type=int,
         default=CONSTRAINED_MEMBERS["profile"],
@@ -98,9 +104,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms,
-               "solve_ticks": args.solve_ticks, "iterations": args.iterations, "emit": args.emit}  # fmt: skip
+               "solve_ticks": args.solve_ticks, "iterations": args.iterations, "emit": args.emit,
+               "track_past": bool(args.track_past)}  # fmt: skip
     members = {"profile": args.profile_members, "kinematic": args.kinematic_members}
     row = evaluate(args.e_des, args.limit, args.components, members, solver=args.solver, **options)
+    if "solve_ticks" in row:  # the row's count of working ticks, not the option of the same name
+        row["ticks_worked"] = row.pop("solve_ticks")
     print(json.dumps({"e_des": args.e_des, "components": args.components, **options, "solver": args.solver,
                       "members": members, **row}))  # fmt: skip
     return 0

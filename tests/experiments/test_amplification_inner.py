@@ -29,3 +29,11 @@ def test_evaluate_and_command(capsys):
     assert main(["--e-des", "1", "--limit", "1"]) == 0
     printed = json.loads(capsys.readouterr().out)
     assert printed["e_des"] == 1 and printed["components"] == 12 and printed["n"] == 1
+
+
+def test_command_keeps_the_solve_ticks_option(capsys):
+    assert main(["--e-des", "0", "--limit", "1", "--track-past", "1"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    # the option as given, and the row's count of ticks that worked on a decision under its own name
+    assert printed["solve_ticks"] == 8 and printed["track_past"] is True
+    assert printed["ticks_worked"] >= printed["decisions"] > 0

@@ -417,6 +417,8 @@ CASES = [
     case("OptimalBlender", "rest_speed", -1.0, "[0.0, inf)"),
     case("OptimalBlender", "solve_ticks", 0, "integer >= 1"),
     case("OptimalBlender", "iterations", 0, "integer >= 1"),
+    case("OptimalBlender", "emit", "predicted", "one of ['human', 'plan']"),
+    case("OptimalBlender", "track_past", 1, "True or False"),
 ]
 
 
