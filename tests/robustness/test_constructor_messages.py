@@ -278,6 +278,7 @@ CASES = [
     case("ShieldedMotion", "decide_every", 0, "integer >= 1"),
     case("ShieldedMotion", "horizon", 0.0, "(0.0, inf)"),
     case("ShieldedMotion", "margin", -0.1, "[0.0, inf)"),
+    case("ShieldedMotion", "backup", -1.0, "[0.0, inf)"),
     case("ShieldedMotion", "switch_margin", math.nan, "[0.0, inf)"),
     case("ShieldedMotion", "min_ticks", 0, "integer >= 1"),
     case("ShieldedMotion", "min_excitation", -1.0, "[0.0, inf)"),
