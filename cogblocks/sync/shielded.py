@@ -43,7 +43,7 @@ __all__ = ["BACKUP", "DECIDE_EVERY", "FOLLOW", "HORIZON", "MARGIN", "PolicyRollo
 #: Defaults: a decision every second on a prediction of 2 s following the policy, then 8 s of doing nothing (the
 #: backup), and a predicted gain of 0.001 in mean r over those 10 s needed to follow it. Chosen on validation groups
 #: 0–119 among four settings (fewest lowered, then the highest mean change) and confirmed on groups 120–299 against
-#: the first version's 1 s, no backup, 0.005 (docs/pop-sync.md, "The DQN behind a shield").
+#: the first version's 1 s, no backup, 0.005 (docs/pop-sync.md, "The shield's backup part").
 DECIDE_EVERY = 100
 HORIZON = 2.0
 BACKUP = 8.0
