@@ -38,7 +38,7 @@ from cogblocks.diagrams.amplification_setup import (
 )
 from cogblocks.diagrams.amplification_setup import blender_networks as shipped_blender_networks
 from cogblocks.sensing import KalmanEstimator
-from cogblocks.sim import Block, Diagram, Simulator
+from cogblocks.sim import Block, Diagram, Simulator, Trace
 from cogblocks.sim.params import finite_number, one_of
 
 __all__ = [
@@ -48,6 +48,7 @@ __all__ = [
     "amplification_setup",
     "plot_amplification",
     "pop_amplification",
+    "replay_movement",
     "run_amplification",
 ]
 
@@ -157,6 +158,27 @@ def pop_amplification(
         d.add(name, Probe())
         d.connect(source, f"{name}.u")
     return d
+
+
+def replay_movement(
+    setup: AmplificationSetup,
+    human: int,
+    blending: Block | None = None,
+    probes: dict[str, str] | None = None,
+    **options: Any,
+) -> Trace:
+    """Movement ``human`` of ``setup``'s library through :func:`pop_amplification`, over the library's window.
+
+    The projector searches ``setup.movements`` with ``setup.table`` and ``setup.encoder``, toward ``setup.e_des``;
+    ``blending`` (e.g. an :class:`~cogblocks.amplification.OptimalBlender`) replaces the table's blend, ``probes``
+    adds probed signals to the trace, and ``options`` go to :func:`pop_amplification` (``corrector``, ...).
+    """
+    velocity, position = setup.library.velocity[human], setup.library.position[human]
+    d = pop_amplification(
+        (velocity, position), setup.movements, table=setup.table, encoder=setup.encoder, blending=blending,
+        e_des=setup.e_des, **options,
+    )  # fmt: skip
+    return Simulator(d, probes=probes).run(n_steps=setup.library.max_len)
 
 
 def _corrector_factories(network: CorrectorNet | None) -> dict[str, Callable[[], Block]]:

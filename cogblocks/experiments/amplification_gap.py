@@ -27,7 +27,7 @@ import torch
 
 from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.judges import FEATURES, kinematic_features
-from cogblocks.diagrams.amplification import pop_amplification
+from cogblocks.diagrams.amplification import replay_movement
 from cogblocks.diagrams.amplification_setup import (
     OPTIMISED,
     AmplificationSetup,
@@ -35,7 +35,6 @@ from cogblocks.diagrams.amplification_setup import (
     blender_networks,
 )
 from cogblocks.experiments.amplification_inner import inner_setup
-from cogblocks.sim import Simulator
 
 __all__ = ["RecordingBlender", "main", "planned_vs_emitted", "summarise"]
 
@@ -70,11 +69,7 @@ def planned_vs_emitted(setup: AmplificationSetup, limit: int, **options: Any) ->
         blender = RecordingBlender(
             setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace, **settings
         )
-        d = pop_amplification(
-            (setup.library.velocity[index], setup.library.position[index]), setup.movements,
-            table=setup.table, encoder=setup.encoder, blending=blender, e_des=setup.e_des,
-        )  # fmt: skip
-        trace = Simulator(d).run(n_steps=setup.library.max_len)
+        trace = replay_movement(setup, int(index), blender)
         emitted = np.asarray(trace["v_a"], dtype=np.float64)
         committed = [i for i, r in enumerate(blender.results) if r.status in ("converged", "accepted")]
         failing = [i for i in committed if not _clipped(blender.results[i].eps, setup.e_des)]

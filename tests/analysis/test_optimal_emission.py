@@ -4,13 +4,12 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.amplification import NoCorrection, OptimalBlender
+from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.emission import final_gap, guarded_velocity, rebased
-from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
+from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
 from cogblocks.experiments.amplification_gap import RecordingBlender, planned_vs_emitted, summarise
 from cogblocks.experiments.amplification_inner import inner_setup
-from cogblocks.sim import Simulator
 
 torch.set_num_threads(1)
 DT = 0.01
@@ -23,12 +22,7 @@ def options(**extra):
 
 
 def replay(setup, blender, human):
-    lib = setup.library
-    d = pop_amplification(
-        (lib.velocity[human], lib.position[human]), setup.movements, table=setup.table, encoder=setup.encoder,
-        corrector=NoCorrection(), blending=blender, e_des=setup.e_des,
-    )  # fmt: skip
-    return Simulator(d, probes={"nearest": "l2.nearest"}).run(n_steps=lib.max_len)
+    return replay_movement(setup, human, blender, probes={"nearest": "l2.nearest"})
 
 
 def random_case(seed, t=25, end=40, n=60):

@@ -7,14 +7,13 @@ import pytest
 import torch
 
 import cogblocks.amplification.optimal as optimal
-from cogblocks.amplification import NoCorrection, OptimalBlender
+from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.linearised import LinearisedRun
 from cogblocks.amplification.plan import plan_problem, with_past
-from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
+from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
 from cogblocks.experiments.amplification_gap import planned_vs_emitted, summarise
 from cogblocks.experiments.amplification_inner import inner_setup
-from cogblocks.sim import Simulator
 
 torch.set_num_threads(1)
 
@@ -39,12 +38,7 @@ def options(**extra):
 
 
 def replay(setup, blender, human):
-    lib = setup.library
-    d = pop_amplification(
-        (lib.velocity[human], lib.position[human]), setup.movements, table=setup.table, encoder=setup.encoder,
-        corrector=NoCorrection(), blending=blender, e_des=setup.e_des,
-    )  # fmt: skip
-    return Simulator(d).run(n_steps=lib.max_len)
+    return replay_movement(setup, human, blender)
 
 
 def assert_same_problem(got, expected, atol=1e-12):

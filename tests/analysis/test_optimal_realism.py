@@ -5,16 +5,15 @@ import pytest
 import torch
 from scipy.optimize import minimize
 
-from cogblocks.amplification import NoCorrection, OptimalBlender
+from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.encoder import movement_length
 from cogblocks.amplification.judges import BLENDER_ENSEMBLE, load_ensemble
 from cogblocks.amplification.linearised import box_qp
 from cogblocks.amplification.plan import plan_problem
 from cogblocks.amplification.subspace import load_subspace, movement_subspace
 from cogblocks.data.features import classifier_inputs, resample_movement
-from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, pop_amplification
+from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED
-from cogblocks.sim import Simulator
 
 torch.set_num_threads(1)
 
@@ -104,12 +103,7 @@ def test_linearised_logits_are_the_networks(setup, networks):
 
 
 def replay(setup, blender, human):
-    lib = setup.library
-    d = pop_amplification(
-        (lib.velocity[human], lib.position[human]), setup.movements, table=setup.table, encoder=setup.encoder,
-        corrector=NoCorrection(), blending=blender, e_des=setup.e_des,
-    )  # fmt: skip
-    return Simulator(d).run(n_steps=lib.max_len)
+    return replay_movement(setup, human, blender)
 
 
 @pytest.mark.parametrize("e_des", [1, 0])

@@ -13,6 +13,7 @@ from cogblocks.diagrams.amplification import (
     amplification_setup,
     plot_amplification,
     pop_amplification,
+    replay_movement,
     run_amplification,
 )
 from cogblocks.sim import DiagramError, Simulator
@@ -45,6 +46,16 @@ def test_the_diagram_runs_and_blends(setup):
     np.testing.assert_allclose(trace["p_a"][0], trace["p_h"][0])
     assert 0.0 <= trace["eps"][-1] <= 1.0
     assert "flowchart" in d.to_mermaid()
+
+
+def test_replay_movement_is_the_diagram_run_over_the_window(setup):
+    human = int(setup.humans[1])
+    probes = {"reference": "l2.reference"}
+    by_hand = Simulator(replay(setup, human, corrector=NoCorrection()), probes=probes).run(n_steps=200)
+    trace = replay_movement(setup, human, probes=probes)
+    assert len(trace.t) == setup.library.max_len == 200
+    for name in ("v_a", "p_a", "c", "eps", "reference"):
+        np.testing.assert_array_equal(trace[name], by_hand[name])
 
 
 def test_corrector_is_swappable(setup):
