@@ -41,7 +41,8 @@ MARGIN = 0.02
 
 #: Default ``commit``: a chosen alteration is kept for 10 periods. Chosen on all 600 groups of
 #: ``random_groups(600, "validation", 0)`` between 0 and 10 by the project's selection rule (fewest groups lowered,
-#: then the highest mean change): both lowered 7 (1.2 %), mean +3.41 % against +3.34 % (docs/pop-sync.md, "Default").
+#: then the highest mean change): both lowered 7 (1.2 %), mean +3.41 % against +3.34 % (docs/pop-sync.md, "Guarded
+#: pacing motion computer").
 COMMIT = 10
 
 

@@ -18,8 +18,9 @@ without L2). The decision is :class:`~cogblocks.sync.pacing.PacingMotion`'s, on 
 
 Shielding (checking a learned controller's actions against a model and overriding the unsafe ones) is a standard
 way to keep a policy's gains where the model vouches for them and nothing else: doing nothing is what cannot
-lower r. The rollout is spread over the period, ``ceil(horizon / dt / decide_every)`` ticks of prediction per
-tick, and its decision applies from the next period's first tick.
+lower r. The rollout is spread over the period (``ceil(horizon / dt / decide_every)`` predicted ticks per tick
+without a backup part; with one, the policy part in the first half of the period and the backup part in the
+rest), and its decision applies from the next period's first tick.
 """
 
 from __future__ import annotations

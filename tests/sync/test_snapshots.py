@@ -13,12 +13,25 @@ from cogblocks.sync import MPCMotion
 PROBES = {"ref": "l2.theta_ref"}
 
 
+def _load(sim: Simulator, snapshot) -> None:
+    """Load a snapshot taken with ``state_dict`` (a dict) or ``save_state`` (a file)."""
+    if isinstance(snapshot, dict):
+        sim.load_state_dict(snapshot)
+    else:
+        sim.load_state(snapshot)
+
+
+def _assert_same_run(first, second) -> None:
+    np.testing.assert_array_equal(first["r"], second["r"])
+    np.testing.assert_array_equal(first["ref"], second["ref"])
+
+
 def _in_progress(name: str, ticks: int, motion) -> None:
     """Check that ``motion`` is mid-way through a decision after ``ticks`` ticks, at the stage the test means."""
     if name == "guard":  # trusted at tick 100: a decision spread over ticks 100-149, its lead done by tick 101
         assert motion.job is not None and 0 < motion.job.done_steps < motion.job.total_steps
         assert (motion.job.done_steps < motion.job.lead_steps) == (ticks == 101)
-    elif name == "dqn":  # trusted at tick 100: a rollout of 100 ticks, one a tick
+    elif name == "dqn":  # trusted at tick 100: a rollout of 200 policy ticks, four a tick, then its backup part
         assert motion.job is not None and 0 < motion.job.done_steps < motion.job.steps
     else:  # pace decides within one tick: nothing is in progress, but its first decision (tick 100) is taken
         assert motion.model() is not None and motion.choices
@@ -42,13 +55,8 @@ def test_a_closed_loop_continues_bit_for_bit_from_a_snapshot(tmp_path, name, tic
     first = sim.run(n_steps=300)
     other = Simulator(pop_sync(2, motion=name) if fresh else diagram, probes=PROBES)
     other.run(n_steps=7)  # a plan with a state of its own, which the snapshot replaces
-    if via == "file":
-        other.load_state(snapshot)
-    else:
-        other.load_state_dict(snapshot)
-    second = other.run(n_steps=300)
-    np.testing.assert_array_equal(first["r"], second["r"])
-    np.testing.assert_array_equal(first["ref"], second["ref"])
+    _load(other, snapshot)
+    _assert_same_run(first, other.run(n_steps=300))
     assert np.ptp(first["ref"]) > 0.0
 
 
@@ -60,9 +68,7 @@ def test_a_reset_drops_the_decision_in_progress(name):
     motion = sim.compiled.blocks["l2.motion"]
     assert motion.job is None and not motion.job_active
     again = sim.run(n_steps=423)
-    fresh = Simulator(pop_sync(2, motion=name), probes=PROBES).run(n_steps=423)
-    np.testing.assert_array_equal(again["r"], fresh["r"])
-    np.testing.assert_array_equal(again["ref"], fresh["ref"])
+    _assert_same_run(again, Simulator(pop_sync(2, motion=name), probes=PROBES).run(n_steps=423))
 
 
 def test_mpc_continues_bit_for_bit_from_a_snapshot_taken_mid_solve(tmp_path):
@@ -82,10 +88,5 @@ def test_mpc_continues_bit_for_bit_from_a_snapshot_taken_mid_solve(tmp_path):
     first = sim.run(n_steps=300)
     for loaded in (tmp_path / "snap.npz", snapshot):
         other = Simulator(pop_sync(group, motion=motion()), probes=PROBES)
-        if isinstance(loaded, dict):
-            other.load_state_dict(loaded)
-        else:
-            other.load_state(loaded)
-        second = other.run(n_steps=300)
-        np.testing.assert_array_equal(first["r"], second["r"])
-        np.testing.assert_array_equal(first["ref"], second["ref"])
+        _load(other, loaded)
+        _assert_same_run(first, other.run(n_steps=300))
