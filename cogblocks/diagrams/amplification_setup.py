@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ __all__ = [
     "AmplificationSetup",
     "amplification_judges",
     "amplification_setup",
+    "blender_ensembles",
     "blender_networks",
     "optimised_subspace",
 ]
@@ -75,6 +77,15 @@ def blender_networks(
     if ensembles is None:
         ensembles = (load_ensemble(BLENDER_ENSEMBLE), load_ensemble(BLENDER_KINEMATIC_ENSEMBLE) if kinematic else [])
     return [*([encoder] if BLENDER_WITH_ENCODER else []), *ensembles[0][:profile], *ensembles[1][:kinematic]]
+
+
+def blender_ensembles(
+    kinematic_weights: Sequence[str | os.PathLike] = (BLENDER_KINEMATIC_ENSEMBLE,),
+) -> tuple[list[EncoderNet], list[EncoderNet]]:
+    """The blender's profile ensemble (``encoder_ensemble.pt``) and its kinematic networks, those of every file of
+    ``kinematic_weights`` in order (by default the shipped ``encoder_ensemble_kinematic.pt``): the ``ensembles``
+    of :func:`blender_networks`, so that the experiments may try kinematic networks that are not shipped."""
+    return load_ensemble(BLENDER_ENSEMBLE), [network for path in kinematic_weights for network in load_ensemble(path)]
 
 
 @dataclass(frozen=True)

@@ -4,6 +4,7 @@ Usage::
 
     python -m cogblocks.experiments.amplification_fresh --library-seed 2027 [--share 0.3] [--limit N]
         [--variants blend blend_rl optimised] [--json]
+        [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
 figures grow optimistic. Here the humans come from ``generate_reach_library(library_seed)``, a seed no
@@ -13,7 +14,9 @@ is the shipped training part, the same encoder, w̃, corrector, blender ensemble
 subspace), in both directions; ``--share`` replays a seeded, stratified share of it instead
 (``ReachLibrary.split(share, 0)``'s second part, as large as the held-out part for 0.3). Prints the rows
 of :func:`~cogblocks.diagrams.amplification.run_amplification` (``e_des = 1`` at the top level,
-``e_des = 0`` under ``"e_des_0"``).
+``e_des = 0`` under ``"e_des_0"``). ``--profile-members``, ``--kinematic-members`` and ``--kinematic-weights``
+replace the constrained networks (as ``amplification_inner``'s), to try a setting on a *validation* library
+(a seed declared as such before it is looked at); without them the chain is the shipped one.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from cogblocks.diagrams.amplification_setup import (
     AmplificationSetup,
     amplification_judges,
     amplification_setup,
+    blender_ensembles,
     blender_networks,
 )
 
@@ -70,12 +74,17 @@ def run_fresh(
     share: float = 1.0,
     humans: ReachLibrary | None = None,
     directions: Sequence[int] = (1, 0),
+    members: dict[str, int] | None = None,
+    kinematic_weights: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """Both directions on the fresh movements, keyed as ``cogblocks run amplification --json``.
 
     ``share`` < 1 keeps the seeded, stratified ``ReachLibrary.split(share, 0)`` validation part of them;
-    ``directions`` are the ``e_des`` run.
+    ``directions`` are the ``e_des`` run. ``members`` (``{"profile": P, "kinematic": K}``) and ``kinematic_weights``
+    (the files of the kinematic networks, :func:`blender_ensembles`) replace the shipped constrained networks, to try
+    a setting on a validation library; by default the chain is the shipped one.
     """
+    ensembles = blender_ensembles(kinematic_weights) if kinematic_weights else None
     if share < 1.0:
         humans = generate_reach_library(library_seed) if humans is None else humans
         humans = humans.subset(humans.split(share, 0)[1])
@@ -84,7 +93,7 @@ def run_fresh(
         setup = fresh_setup(library_seed, e_des, humans)
         result = run_amplification(
             variants, limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
-            blender_networks=blender_networks(setup.encoder),
+            blender_networks=blender_networks(setup.encoder, **(members or {}), ensembles=ensembles),
         )  # fmt: skip
         rows.update(result) if e_des == 1 else rows.update(e_des_0=result)
     return rows
@@ -101,9 +110,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--e-des", type=int, choices=(0, 1), nargs="+", default=[1, 0], help="directions (default both)"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--profile-members", type=int, default=None, help="default CONSTRAINED_MEMBERS'")
+    parser.add_argument("--kinematic-members", type=int, default=None, help="default CONSTRAINED_MEMBERS'")
+    parser.add_argument(
+        "--kinematic-weights", nargs="+", default=None, metavar="FILE",
+        help="ensemble checkpoints the kinematic networks are taken from, in order (default the shipped one)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des)
+    members = {k: v for k, v in (("profile", args.profile_members), ("kinematic", args.kinematic_members)) if v is not None}
+    rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des,
+                     members=members, kinematic_weights=args.kinematic_weights)  # fmt: skip
     if args.json:
         print(json.dumps(rows))
         return 0
