@@ -118,7 +118,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     )  # fmt: skip
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    members = {k: v for k, v in (("profile", args.profile_members), ("kinematic", args.kinematic_members)) if v is not None}
+    given = {"profile": args.profile_members, "kinematic": args.kinematic_members}
+    members = {name: count for name, count in given.items() if count is not None}
     rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des,
                      members=members, kinematic_weights=args.kinematic_weights)  # fmt: skip
     if args.json:

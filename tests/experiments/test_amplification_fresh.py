@@ -63,3 +63,17 @@ def test_share_replays_a_stratified_part(humans):
     rows = run_fresh(FRESH_SEED, ("blend",), share=0.5, humans=humans)
     # half of each class of the 2 + 2 movements: one no-fear human encodes fear, one fear human has it removed
     assert rows["share"] == 0.5 and rows["blend"]["n"] == 1 and rows["e_des_0"]["blend"]["n"] == 1
+
+
+def test_run_fresh_constrains_the_networks_asked_for(humans, monkeypatch):
+    import cogblocks.experiments.amplification_fresh as fresh
+
+    constrained = []
+    run = fresh.run_amplification
+    monkeypatch.setattr(
+        fresh, "run_amplification", lambda *a, **kw: (constrained.append(kw["blender_networks"]), run(*a, **kw))[1]
+    )
+    rows = run_fresh(FRESH_SEED, ("blend",), limit=1, humans=humans, directions=(0,), members={"kinematic": 1})
+    assert rows["e_des_0"]["blend"]["n"] == 1
+    (networks,) = constrained
+    assert [n.hidden.in_features for n in networks] == [60, 60, 60, 66]  # the encoder, 2 profile, 1 kinematic

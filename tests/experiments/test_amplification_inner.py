@@ -37,3 +37,13 @@ def test_command_keeps_the_solve_ticks_option(capsys):
     # the option as given, and the row's count of ticks that worked on a decision under its own name
     assert printed["solve_ticks"] == 8 and printed["track_past"] is True
     assert printed["ticks_worked"] >= printed["decisions"] > 0
+
+
+def test_command_takes_kinematic_networks_from_files(capsys):
+    from cogblocks.amplification.judges import BLENDER_KINEMATIC_ENSEMBLE
+
+    files = [BLENDER_KINEMATIC_ENSEMBLE, BLENDER_KINEMATIC_ENSEMBLE]
+    assert main(["--e-des", "1", "--limit", "1", "--kinematic-members", "6", "--kinematic-weights", *files]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["members"] == {"profile": 2, "kinematic": 6} and printed["kinematic_weights"] == files
+    assert printed["n"] == 1 and printed["decisions"] > 0
