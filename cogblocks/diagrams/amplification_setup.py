@@ -36,15 +36,16 @@ __all__ = [
     "optimised_subspace",
 ]
 
-#: How the validation runs the optimised blender (chosen on an inner split of the training part, see
-#: docs/pop-amplification.md): the sequential-QP solver on the exact networks, spread over 8 ticks of at
-#: most 4 ms of CPU time each (building, solving and checking included) and 40 iterations, plans for
+#: How the validation runs the optimised blender (chosen on an inner split of the training part and, since the
+#: seventh round, validation libraries; see docs/pop-amplification.md): the sequential-QP solver on the exact
+#: networks, spread over 6 ticks of at most 4 ms of CPU time each (building, solving and checking included; 8
+#: until the seventh round) and 40 iterations, plans for
 #: ε̂ ≥ 0.999 (≤ 0.001), and a penalty (weight ``realism``) on the altered movement's distance from the
 #: subspace of the desired class's ``components`` leading principal directions.
 OPTIMISED = {
     "solver": "linearised",
     "time_limit_ms": 4.0,
-    "solve_ticks": 8,
+    "solve_ticks": 6,
     "iterations": 40,
     "realism": 3000.0,
     "margin": 0.099,
