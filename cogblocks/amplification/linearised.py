@@ -15,14 +15,34 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import AbstractContextManager
+from functools import cache
 from typing import Any
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
+from threadpoolctl import ThreadpoolController
 
-__all__ = ["LinearisedRun", "LinearisedSolver", "box_qp", "network_input"]
+__all__ = ["LinearisedRun", "LinearisedSolver", "box_qp", "network_input", "one_blas_thread"]
 
 _PENALTY = 1e3  # as the SQP's: weight of the encoding slack per logit unit
+
+
+@cache
+def _blas() -> ThreadpoolController:
+    """The BLAS libraries loaded (NumPy's and SciPy's OpenBLAS), found once: looking them up takes milliseconds."""
+    return ThreadpoolController().select(user_api="blas")
+
+
+def one_blas_thread() -> AbstractContextManager:
+    """A context in which BLAS runs on the calling thread only (about 20 µs to enter and leave).
+
+    With several members the stacked first layer (e.g. 2200 × 66 for eleven networks) is large enough for
+    OpenBLAS to split its products over threads; on a machine whose other cores are busy the calling thread
+    then waits, spinning, for a thread that is not scheduled, and a tick's CPU time grows tenfold
+    (docs/pop-amplification.md, "Seventh round"). One thread is fast enough at these sizes.
+    """
+    return _blas().limit(limits=1)
 
 
 def box_qp(m: np.ndarray, b: np.ndarray, upper: np.ndarray) -> np.ndarray:

@@ -36,7 +36,7 @@ from cogblocks.amplification.encoder import (
     resampling_matrix,
 )
 from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, solve_decision
-from cogblocks.amplification.linearised import LinearisedSolver
+from cogblocks.amplification.linearised import LinearisedSolver, one_blas_thread
 from cogblocks.amplification.members import StackedNetworks
 from cogblocks.amplification.past import follow_past
 from cogblocks.amplification.plan import PlanResult, plan_problem, sigmoid
@@ -302,7 +302,8 @@ class OptimalBlender(Block):
         self._pending = None
         if (int(self.decisions.value) > self.handled and t < len(self.human)) or self._job is not None:
             started = time.thread_time()
-            self._pending = self._work(t, started)
+            with one_blas_thread():  # BLAS threads would wait for busy cores (linearised.one_blas_thread)
+                self._pending = self._work(t, started)
             if "solving" in self._pending:  # a tick with a problem to solve (not a decision after the movement)
                 self._pending.pop("solving")
                 self.tick_ms.append((time.thread_time() - started) * 1e3)

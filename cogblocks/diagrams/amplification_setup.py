@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -30,19 +31,21 @@ __all__ = [
     "AmplificationSetup",
     "amplification_judges",
     "amplification_setup",
+    "blender_ensembles",
     "blender_networks",
     "optimised_subspace",
 ]
 
-#: How the validation runs the optimised blender (chosen on an inner split of the training part, see
-#: docs/pop-amplification.md): the sequential-QP solver on the exact networks, spread over 8 ticks of at
-#: most 4 ms of CPU time each (building, solving and checking included) and 40 iterations, plans for
+#: How the validation runs the optimised blender (chosen on an inner split of the training part and, since the
+#: seventh round, validation libraries; see docs/pop-amplification.md): the sequential-QP solver on the exact
+#: networks, spread over 6 ticks of at most 4 ms of CPU time each (building, solving and checking included; 8
+#: until the seventh round) and 40 iterations, plans for
 #: ε̂ ≥ 0.999 (≤ 0.001), and a penalty (weight ``realism``) on the altered movement's distance from the
 #: subspace of the desired class's ``components`` leading principal directions.
 OPTIMISED = {
     "solver": "linearised",
     "time_limit_ms": 4.0,
-    "solve_ticks": 8,
+    "solve_ticks": 6,
     "iterations": 40,
     "realism": 3000.0,
     "margin": 0.099,
@@ -75,6 +78,15 @@ def blender_networks(
     if ensembles is None:
         ensembles = (load_ensemble(BLENDER_ENSEMBLE), load_ensemble(BLENDER_KINEMATIC_ENSEMBLE) if kinematic else [])
     return [*([encoder] if BLENDER_WITH_ENCODER else []), *ensembles[0][:profile], *ensembles[1][:kinematic]]
+
+
+def blender_ensembles(
+    kinematic_weights: Sequence[str | os.PathLike] = (BLENDER_KINEMATIC_ENSEMBLE,),
+) -> tuple[list[EncoderNet], list[EncoderNet]]:
+    """The blender's profile ensemble (``encoder_ensemble.pt``) and its kinematic networks, those of every file of
+    ``kinematic_weights`` in order (by default the shipped ``encoder_ensemble_kinematic.pt``): the ``ensembles``
+    of :func:`blender_networks`, so that the experiments may try kinematic networks that are not shipped."""
+    return load_ensemble(BLENDER_ENSEMBLE), [network for path in kinematic_weights for network in load_ensemble(path)]
 
 
 @dataclass(frozen=True)

@@ -4,6 +4,8 @@ Usage::
 
     python -m cogblocks.experiments.amplification_fresh --library-seed 2027 [--share 0.3] [--limit N]
         [--variants blend blend_rl optimised] [--json]
+        [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
+        [--solve-ticks N] [--realism R] [--components C]
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
 figures grow optimistic. Here the humans come from ``generate_reach_library(library_seed)``, a seed no
@@ -13,25 +15,32 @@ is the shipped training part, the same encoder, w̃, corrector, blender ensemble
 subspace), in both directions; ``--share`` replays a seeded, stratified share of it instead
 (``ReachLibrary.split(share, 0)``'s second part, as large as the held-out part for 0.3). Prints the rows
 of :func:`~cogblocks.diagrams.amplification.run_amplification` (``e_des = 1`` at the top level,
-``e_des = 0`` under ``"e_des_0"``).
+``e_des = 0`` under ``"e_des_0"``). ``--profile-members``, ``--kinematic-members`` and ``--kinematic-weights``
+replace the constrained networks, ``--solve-ticks``, ``--realism`` and ``--components`` the optimised blender's
+settings (as ``amplification_inner``'s), to try a setting on a *validation* library (a seed declared as such
+before it is looked at); without them the chain is the shipped one.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 import torch
 
+from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 from cogblocks.diagrams.amplification import run_amplification
 from cogblocks.diagrams.amplification_setup import (
+    OPTIMISED,
     AmplificationSetup,
     amplification_judges,
     amplification_setup,
+    blender_ensembles,
     blender_networks,
 )
 
@@ -70,21 +79,33 @@ def run_fresh(
     share: float = 1.0,
     humans: ReachLibrary | None = None,
     directions: Sequence[int] = (1, 0),
+    members: dict[str, int] | None = None,
+    kinematic_weights: Sequence[str] | None = None,
+    optimised: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Both directions on the fresh movements, keyed as ``cogblocks run amplification --json``.
 
     ``share`` < 1 keeps the seeded, stratified ``ReachLibrary.split(share, 0)`` validation part of them;
-    ``directions`` are the ``e_des`` run.
+    ``directions`` are the ``e_des`` run. ``members`` (``{"profile": P, "kinematic": K}``) and ``kinematic_weights``
+    (the files of the kinematic networks, :func:`blender_ensembles`) replace the shipped constrained networks and
+    ``optimised`` some of :data:`OPTIMISED` (``components``: the realism subspace's, computed on the shipped training
+    part), to try a setting on a validation library; by default the chain is the shipped one.
     """
+    ensembles = blender_ensembles(kinematic_weights) if kinematic_weights else None
+    settings = {**OPTIMISED, **(optimised or {})}
+    components = int(settings.pop("components"))
     if share < 1.0:
         humans = generate_reach_library(library_seed) if humans is None else humans
         humans = humans.subset(humans.split(share, 0)[1])
     rows: dict[str, Any] = {"library_seed": library_seed, "share": share}
     for e_des in directions:
         setup = fresh_setup(library_seed, e_des, humans)
+        if components != OPTIMISED["components"]:
+            setup = dataclasses.replace(setup, subspace=movement_subspace(setup.movements, e_des, components))
         result = run_amplification(
             variants, limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
-            blender_networks=blender_networks(setup.encoder),
+            blender_networks=blender_networks(setup.encoder, **(members or {}), ensembles=ensembles),
+            optimised=settings,
         )  # fmt: skip
         rows.update(result) if e_des == 1 else rows.update(e_des_0=result)
     return rows
@@ -101,9 +122,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--e-des", type=int, choices=(0, 1), nargs="+", default=[1, 0], help="directions (default both)"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--profile-members", type=int, default=None, help="default CONSTRAINED_MEMBERS'")
+    parser.add_argument("--kinematic-members", type=int, default=None, help="default CONSTRAINED_MEMBERS'")
+    parser.add_argument(
+        "--kinematic-weights", nargs="+", default=None, metavar="FILE",
+        help="ensemble checkpoints the kinematic networks are taken from, in order (default the shipped one)",
+    )  # fmt: skip
+    parser.add_argument("--solve-ticks", type=int, default=OPTIMISED["solve_ticks"])
+    parser.add_argument("--realism", type=float, default=OPTIMISED["realism"])
+    parser.add_argument("--components", type=int, default=OPTIMISED["components"])
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des)
+    optimised = {"solve_ticks": args.solve_ticks, "realism": args.realism, "components": args.components}
+    given = {"profile": args.profile_members, "kinematic": args.kinematic_members}
+    members = {name: count for name, count in given.items() if count is not None}
+    rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des,
+                     members=members, kinematic_weights=args.kinematic_weights, optimised=optimised)  # fmt: skip
     if args.json:
         print(json.dumps(rows))
         return 0

@@ -5,6 +5,7 @@ Usage::
     python -m cogblocks.experiments.amplification_inner --e-des 1 --limit 30 [--components 12]
         [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised] [--solve-ticks 1]
         [--iterations 10] [--profile-members 2] [--kinematic-members 0] [--emit human] [--track-past 0|1]
+        [--kinematic-weights FILE ...]
 
 The training part of the shipped encoder's split is split again, seeded and stratified
 (``ReachLibrary.split(0.3, 100)``); w̃ and the realism subspace are computed on the inner training
@@ -34,6 +35,7 @@ from cogblocks.diagrams.amplification_setup import (
     AmplificationSetup,
     amplification_judges,
     amplification_setup,
+    blender_ensembles,
     blender_networks,
 )
 
@@ -56,14 +58,21 @@ def inner_setup(
 
 
 def evaluate(
-    e_des: int, limit: int, components: int, members: dict[str, int] | None = None, **options: Any
+    e_des: int,
+    limit: int,
+    components: int,
+    members: dict[str, int] | None = None,
+    kinematic_weights: Sequence[str] | None = None,
+    **options: Any,
 ) -> dict[str, Any]:
     """The optimised row of :func:`run_amplification` on the first ``limit`` inner movements, with ``options``.
 
-    ``members`` (``{"profile": P, "kinematic": K}``) overrides :data:`CONSTRAINED_MEMBERS`: the networks constrained.
+    ``members`` (``{"profile": P, "kinematic": K}``) overrides :data:`CONSTRAINED_MEMBERS`: the networks constrained;
+    ``kinematic_weights`` the files the kinematic networks come from (:func:`blender_ensembles`; the shipped one).
     """
     setup = inner_setup(e_des, components)
-    networks = blender_networks(setup.encoder, **(members or {}))
+    ensembles = blender_ensembles(kinematic_weights) if kinematic_weights else None
+    networks = blender_networks(setup.encoder, **(members or {}), ensembles=ensembles)
     result = run_amplification(
         ("optimised",), limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
         blender_networks=networks, optimised=options,
@@ -101,17 +110,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         default=CONSTRAINED_MEMBERS["kinematic"],
         help="networks of encoder_ensemble_kinematic.pt constrained",
     )
+    parser.add_argument(
+        "--kinematic-weights", nargs="+", default=None, metavar="FILE",
+        help="ensemble checkpoints the kinematic networks are taken from, in order (default the shipped one)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms,
                "solve_ticks": args.solve_ticks, "iterations": args.iterations, "emit": args.emit,
                "track_past": bool(args.track_past)}  # fmt: skip
     members = {"profile": args.profile_members, "kinematic": args.kinematic_members}
-    row = evaluate(args.e_des, args.limit, args.components, members, solver=args.solver, **options)
+    row = evaluate(args.e_des, args.limit, args.components, members, args.kinematic_weights, solver=args.solver,
+                   **options)  # fmt: skip
     if "solve_ticks" in row:  # the row's count of working ticks, not the option of the same name
         row["ticks_worked"] = row.pop("solve_ticks")
     print(json.dumps({"e_des": args.e_des, "components": args.components, **options, "solver": args.solver,
-                      "members": members, **row}))  # fmt: skip
+                      "members": members, "kinematic_weights": args.kinematic_weights, **row}))  # fmt: skip
     return 0
 
 

@@ -9,6 +9,7 @@ import torch
 from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.encoder import EncoderNet, resampling_matrix
 from cogblocks.amplification.judges import (
+    BLENDER_ENSEMBLE,
     BLENDER_KINEMATIC_ENSEMBLE,
     EncoderEnsemble,
     ensemble_inputs,
@@ -20,7 +21,7 @@ from cogblocks.amplification.linearised import network_input
 from cogblocks.amplification.members import kinematic_member
 from cogblocks.amplification.plan import plan_problem
 from cogblocks.diagrams.amplification import amplification_setup
-from cogblocks.diagrams.amplification_setup import CONSTRAINED_MEMBERS, blender_networks
+from cogblocks.diagrams.amplification_setup import CONSTRAINED_MEMBERS, blender_ensembles, blender_networks
 
 torch.set_num_threads(1)
 DT = 0.01
@@ -168,3 +169,13 @@ def test_shipped_blender_networks(setup):
     assert networks[0] is setup.encoder
     assert sizes == [60] * (1 + CONSTRAINED_MEMBERS["profile"]) + [66] * CONSTRAINED_MEMBERS["kinematic"]
     assert [n.hidden.in_features for n in blender_networks(setup.encoder, 1, 0)] == [60, 60]
+
+
+def test_blender_ensembles_take_the_kinematic_networks_of_every_file(setup, kinematic):
+    profile, networks = blender_ensembles((BLENDER_KINEMATIC_ENSEMBLE, BLENDER_KINEMATIC_ENSEMBLE))
+    assert len(profile) == len(load_ensemble(BLENDER_ENSEMBLE)) and len(networks) == 2 * len(kinematic)
+    for net, same in zip(networks, [*kinematic, *kinematic], strict=True):
+        for a, b in zip(net.state_dict().values(), same.state_dict().values(), strict=True):
+            assert torch.equal(a, b)
+    chosen = blender_networks(setup.encoder, 1, 6, ensembles=(profile, networks))
+    assert [n.hidden.in_features for n in chosen] == [60, 60] + [66] * 6

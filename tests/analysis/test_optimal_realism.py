@@ -218,3 +218,21 @@ def test_solve_ticks_plans_from_the_last_tick(setup, networks, ticks):
     np.testing.assert_allclose(blender.solve_ms, [r.solve_ms for r in solved])
     with pytest.raises(ValueError, match="solve_ticks > 1 needs solver='linearised'"):
         OptimalBlender(setup.movements, networks, setup.table, solve_ticks=2)
+
+
+def test_ticks_run_blas_on_one_thread(setup, networks):
+    # OpenBLAS's threads would wait for busy cores: a tick's products run on the calling thread, and the
+    # process's setting is back once the tick is over
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads() -> set[int]:
+        return {info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"}
+
+    blender = OptimalBlender(setup.movements, networks, setup.table, solver="linearised", solve_ticks=2)
+    seen, work = [], blender._work
+    blender._work = lambda t, started: (seen.append(blas_threads()), work(t, started))[1]
+    with threadpool_limits(limits=2, user_api="blas"):
+        replay_movement(setup, int(setup.humans[0]), blender)
+        assert blas_threads() == {2}
+    assert blender.results and len(seen) >= len(blender.results)
+    assert all(threads == {1} for threads in seen)

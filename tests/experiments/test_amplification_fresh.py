@@ -63,3 +63,25 @@ def test_share_replays_a_stratified_part(humans):
     rows = run_fresh(FRESH_SEED, ("blend",), share=0.5, humans=humans)
     # half of each class of the 2 + 2 movements: one no-fear human encodes fear, one fear human has it removed
     assert rows["share"] == 0.5 and rows["blend"]["n"] == 1 and rows["e_des_0"]["blend"]["n"] == 1
+
+
+def test_run_fresh_constrains_the_networks_and_settings_asked_for(humans, monkeypatch):
+    import cogblocks.experiments.amplification_fresh as fresh
+    from cogblocks.diagrams.amplification_setup import CONSTRAINED_MEMBERS, OPTIMISED
+
+    calls = []
+    run = fresh.run_amplification
+    monkeypatch.setattr(fresh, "run_amplification", lambda *a, **kw: (calls.append(kw), run(*a, **kw))[1])
+    rows = run_fresh(FRESH_SEED, ("blend",), limit=1, humans=humans, directions=(0,), members={"kinematic": 1},
+                     optimised={"solve_ticks": 4, "components": 5})  # fmt: skip
+    assert rows["e_des_0"]["blend"]["n"] == 1
+    run_fresh(FRESH_SEED, ("blend",), limit=1, humans=humans, directions=(0,))
+    changed, shipped = calls
+    # the encoder, the shipped profile networks and 1 kinematic one; by default the shipped counts
+    profile, kinematic = [60] * (1 + CONSTRAINED_MEMBERS["profile"]), [66] * CONSTRAINED_MEMBERS["kinematic"]
+    assert [n.hidden.in_features for n in changed["blender_networks"]] == [*profile, 66]
+    assert [n.hidden.in_features for n in shipped["blender_networks"]] == profile + kinematic
+    assert changed["optimised"] == {**{k: v for k, v in OPTIMISED.items() if k != "components"}, "solve_ticks": 4}
+    assert shipped["optimised"] == {k: v for k, v in OPTIMISED.items() if k != "components"}
+    assert len(changed["setup"].subspace) == 5 and changed["setup"].subspace.e_des == 0
+    assert shipped["setup"].subspace is amplification_setup(None, 0).subspace

@@ -6,6 +6,7 @@ import numpy as np
 import torch
 
 from cogblocks.diagrams.amplification import amplification_setup
+from cogblocks.diagrams.amplification_setup import OPTIMISED
 from cogblocks.experiments.amplification_inner import evaluate, inner_setup, main
 
 torch.set_num_threads(1)
@@ -35,5 +36,15 @@ def test_command_keeps_the_solve_ticks_option(capsys):
     assert main(["--e-des", "0", "--limit", "1", "--track-past", "1"]) == 0
     printed = json.loads(capsys.readouterr().out)
     # the option as given, and the row's count of ticks that worked on a decision under its own name
-    assert printed["solve_ticks"] == 8 and printed["track_past"] is True
+    assert printed["solve_ticks"] == OPTIMISED["solve_ticks"] and printed["track_past"] is True
     assert printed["ticks_worked"] >= printed["decisions"] > 0
+
+
+def test_command_takes_kinematic_networks_from_files(capsys):
+    from cogblocks.amplification.judges import BLENDER_KINEMATIC_ENSEMBLE
+
+    files = [BLENDER_KINEMATIC_ENSEMBLE, BLENDER_KINEMATIC_ENSEMBLE]
+    assert main(["--e-des", "1", "--limit", "1", "--kinematic-members", "6", "--kinematic-weights", *files]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["members"] == {"profile": 2, "kinematic": 6} and printed["kinematic_weights"] == files
+    assert printed["n"] == 1 and printed["decisions"] > 0
