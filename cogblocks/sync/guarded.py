@@ -73,6 +73,14 @@ class GuardedPacingMotion(PacingMotion):
         again (default :data:`COMMIT`); 0: every decision chooses afresh. A prediction scores a candidate held
         over the whole horizon; re-choosing every period can stop a pacing plan half-way, where the group is
         left worse off than unaltered (docs/pop-sync.md).
+    confirm : float, optional
+        A second horizon (s). When given, the one rollout of a decision is scored over both ``horizon`` and
+        ``confirm`` (the longer one, with the shorter as a checkpoint on the way): the choice is made on
+        ``horizon``'s scores as without it, and a *new* alteration so chosen (started, or switched to) is taken only
+        if its score over ``confirm`` also beats doing nothing by ``margin``; otherwise the block goes on with the
+        alteration in progress if ``horizon`` still favours it by ``margin``, or does nothing. A plan that only one horizon
+        favours is where a prediction is most likely wrong; stopping a plan half-way is what loses most
+        (docs/pop-sync.md), so an alteration that goes on is not vetoed.
 
     Notes
     -----
@@ -97,6 +105,7 @@ class GuardedPacingMotion(PacingMotion):
         fallback: str = "none",
         first_period: int | None = None,
         commit: int = COMMIT,
+        confirm: float | None = None,
         **pacing: Any,
     ) -> None:
         super().__init__(n, assisted, **{"margin": MARGIN} | pacing)
@@ -105,6 +114,7 @@ class GuardedPacingMotion(PacingMotion):
         default_first = max(1, self.decide_every // 2)
         self.first_period = positive_int(self, "first_period", default_first if first_period is None else first_period)
         self.commit = positive_int(self, "commit", commit, minimum=0)
+        self.confirm = None if confirm is None else finite_number(self, "confirm", confirm, low=0.0, low_open=True)
         self.add_state("error", math.inf)  # the last check's error (inf: none passed yet)
         self.add_state("passed", False)  # a check has passed since the last reset
         self.add_state("next_due", 0)  # the tick the next decision is due at
@@ -202,6 +212,7 @@ class GuardedPacingMotion(PacingMotion):
         """The staged prediction of a decision started on ``theta`` and ``lam``, its lead ``lead_time`` s long."""
         step = self._stable_step(model[1])
         lead_steps = min(self.max_steps, max(1, math.ceil(lead_time / step - 1e-9)))
+        steps = [self._steps(self.horizon, step)] + ([] if self.confirm is None else [self._steps(self.confirm, step)])
         return StagedPrediction(
             theta,
             lam,
@@ -214,8 +225,21 @@ class GuardedPacingMotion(PacingMotion):
             lead_steps=lead_steps,
             fan_out=self._fan_out,
             step=step,
-            steps=min(self.max_steps, max(1, round(self.horizon / step))),
+            steps=max(steps),
+            checkpoint=min(steps) if len(steps) == 2 else None,
         )
+
+    def _steps(self, horizon: float, step: float) -> int:
+        """Euler steps of ``step`` s over ``horizon`` s, at least one and at most ``max_steps``."""
+        return min(self.max_steps, max(1, round(horizon / step)))
+
+    def _horizon_scores(self, job: StagedPrediction) -> tuple[np.ndarray, np.ndarray | None]:
+        """The candidates' scores over ``horizon``, and over ``confirm`` (``None`` without it)."""
+        if self.confirm is None:
+            return job.scores, None
+        if self.confirm >= self.horizon:
+            return job.checkpoint_scores, job.scores
+        return job.scores, job.checkpoint_scores
 
     def _fan_out(self, theta: np.ndarray, _lam: float) -> tuple[np.ndarray, ...]:
         """The candidates of the decision in progress, from the phases ``theta`` predicted at its lead's end.
@@ -239,7 +263,7 @@ class GuardedPacingMotion(PacingMotion):
             self.errors.append(self.error)
             self.passed = self.passed or self.error <= self.tolerance
         kinds, values, _ = job.candidates
-        scores = job.scores
+        scores = self._horizon_scores(job)
         if self.error > self.tolerance:
             mode, value = self.fallback, math.pi
             self.held = self.commit  # no commitment to the fallback
@@ -260,8 +284,11 @@ class GuardedPacingMotion(PacingMotion):
         self.mode, self.value = mode, value
         return False
 
-    def _committed(self, kinds: np.ndarray, scores: np.ndarray) -> int:
-        """The alteration in progress while it is committed (``commit``), otherwise the choice with the margins."""
+    def _committed(self, kinds: np.ndarray, scores: tuple[np.ndarray, np.ndarray | None]) -> int:
+        """The alteration in progress while it is committed (``commit``), otherwise the choice with the margins.
+
+        ``scores``: over ``horizon`` and over ``confirm`` (or ``None``), as :meth:`_horizon_scores` gives them.
+        """
         if self.mode == NONE:
             current = 0
         elif self.mode == MEAN:
@@ -271,7 +298,11 @@ class GuardedPacingMotion(PacingMotion):
         if self.mode != NONE and self.held < self.commit:
             self.held += 1
             return current
-        best = self._best(kinds, scores)
+        chosen, confirming = scores
+        best = self._best(kinds, chosen)
+        starting = best != current and kinds[best] != NONE
+        if starting and confirming is not None and confirming[best] < confirming[0] + self.margin:
+            best = current if self.mode != NONE and chosen[current] >= chosen[0] + self.margin else 0
         if best != current:
             self.held = 1
         return best

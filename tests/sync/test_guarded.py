@@ -61,6 +61,67 @@ def test_staged_prediction_is_the_lead_then_predicted_order_in_any_chunks():
     assert np.ptp(want) > 1e-3
 
 
+def test_a_checkpoint_scores_the_first_steps_of_the_same_rollout():
+    """``checkpoint`` scores of a 40-step fan-out are those of a 15-step prediction; its full scores are unchanged."""
+    theta, lam, model, a, assisted = _problem()
+    lead = (MEAN, math.pi, 0.0)
+    cands = (np.array([NONE, MEAN, PACE]), np.array([0.0, 2.0, 3.0]), np.array([0.0, 0.0, 0.5]))
+
+    def job(steps: int, checkpoint: int | None = None) -> StagedPrediction:
+        kwargs = {"lead_time": 0.5, "lead_steps": 5, "fan_out": lambda t, la_: cands, "step": 0.05}
+        done = StagedPrediction(theta, lam, model, a, assisted, BLENDER, lead, steps=steps, checkpoint=checkpoint, **kwargs)
+        while not done.done:
+            done.advance(6)
+        return done
+
+    both, short, long = job(40, 15), job(15), job(40)
+    np.testing.assert_allclose(both.checkpoint_scores, short.scores, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(both.scores, long.scores)
+    assert np.ptp(both.checkpoint_scores - both.scores) > 1e-4  # the two horizons rank differently enough to matter
+    with pytest.raises(RuntimeError, match="no checkpoint"):
+        _ = long.checkpoint_scores
+    with pytest.raises(ValueError, match="checkpoint must be within 1..steps=40, got 41"):
+        job(40, 41)
+
+
+def test_confirm_keeps_an_alteration_only_if_both_horizons_predict_its_gain():
+    """The choice is made on ``horizon``'s scores; ``confirm``'s must also beat doing nothing by ``margin``."""
+    block = GuardedPacingMotion(4, 0, horizon=10.0, confirm=20.0, commit=0)
+    kinds = np.array([NONE, MEAN, PACE])
+    ten = np.array([0.50, 0.51, 0.56])  # pacing gains 0.06 over 10 s
+    assert block._committed(kinds, (ten, None)) == 2
+    assert block._committed(kinds, (ten, np.array([0.50, 0.52, 0.519]))) == 0  # 0.019 over 20 s: below the margin
+    assert block._committed(kinds, (ten, np.array([0.50, 0.60, 0.521]))) == 2  # 20 s favours it by 0.021: kept
+    # the veto does not pick the 20 s favourite instead: it only stops what 10 s chose
+    assert block._committed(kinds, (np.array([0.50, 0.51, 0.505]), np.array([0.50, 0.60, 0.40]))) == 0
+    # a pace in progress goes on unvetoed; a switch to another that 20 s does not confirm keeps the one in progress
+    gates = len(block.gates)
+    kinds = np.array([NONE] + [MEAN] * gates + [PACE, PACE])
+    block.mode, block.value = PACE, 3.0
+    going_on, other = 1 + gates, 2 + gates
+    ten, twenty = np.full(len(kinds), 0.50), np.full(len(kinds), 0.50)
+    ten[going_on], ten[other] = 0.53, 0.60
+    twenty[other] = 0.51
+    assert block._committed(kinds, (ten, twenty)) == going_on
+    ten[other] = 0.50
+    assert block._committed(kinds, (ten, twenty)) == going_on  # 20 s does not favour it either: not vetoed
+    ten[going_on], ten[other] = 0.51, 0.60  # 10 s no longer favours it by the margin, its rival is vetoed
+    assert block._committed(kinds, (ten, twenty)) == 0
+
+
+def test_a_guard_with_confirm_scores_both_horizons_from_one_rollout():
+    """With ``confirm=20`` the fan-out runs 20 s (400 steps of 50 ms) and the 10 s scores are its checkpoint."""
+    group = TABLE2[1]
+    block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, confirm=20.0)
+    record: list[int] = []
+    _closed_loop(group, block, 1.49, record)  # ticks 0-149: the first decision, started at tick 100, is ready
+    job = block.job
+    assert job.steps == 400 and job.checkpoint == 200 and job.done
+    assert max(record) <= block.max_evaluations
+    with pytest.raises(ValueError, match="confirm must be"):
+        GuardedPacingMotion(3, 0, confirm=0.0)
+
+
 def test_phase_error_ignores_a_common_offset():
     rng = np.random.default_rng(0)
     theta = rng.uniform(0, 2 * np.pi, 6)
