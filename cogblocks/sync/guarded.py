@@ -81,6 +81,11 @@ class GuardedPacingMotion(PacingMotion):
         alteration in progress if ``horizon`` still favours it by ``margin``, or does nothing. A plan that only one horizon
         favours is where a prediction is most likely wrong; stopping a plan half-way is what loses most
         (docs/pop-sync.md), so an alteration that goes on is not vetoed.
+    end : float, optional
+        When the run ends (s from the block's first tick), if known: a trial of fixed length, whose score is
+        the mean r up to its end. Predictions are then scored only up to it (at least one Euler step), since
+        what a plan gains after the end does not count; a pace that costs now and pays later is otherwise
+        chosen just before the end. Past ``end`` the horizons apply whole again.
 
     Notes
     -----
@@ -106,6 +111,7 @@ class GuardedPacingMotion(PacingMotion):
         first_period: int | None = None,
         commit: int = COMMIT,
         confirm: float | None = None,
+        end: float | None = None,
         **pacing: Any,
     ) -> None:
         super().__init__(n, assisted, **{"margin": MARGIN} | pacing)
@@ -115,6 +121,7 @@ class GuardedPacingMotion(PacingMotion):
         self.first_period = positive_int(self, "first_period", default_first if first_period is None else first_period)
         self.commit = positive_int(self, "commit", commit, minimum=0)
         self.confirm = None if confirm is None else finite_number(self, "confirm", confirm, low=0.0, low_open=True)
+        self.end = None if end is None else finite_number(self, "end", end, low=0.0, low_open=True)
         self.add_state("error", math.inf)  # the last check's error (inf: none passed yet)
         self.add_state("passed", False)  # a check has passed since the last reset
         self.add_state("next_due", 0)  # the tick the next decision is due at
@@ -212,7 +219,11 @@ class GuardedPacingMotion(PacingMotion):
         """The staged prediction of a decision started on ``theta`` and ``lam``, its lead ``lead_time`` s long."""
         step = self._stable_step(model[1])
         lead_steps = min(self.max_steps, max(1, math.ceil(lead_time / step - 1e-9)))
-        steps = [self._steps(self.horizon, step)] + ([] if self.confirm is None else [self._steps(self.confirm, step)])
+        horizons = [self.horizon] + ([] if self.confirm is None else [self.confirm])
+        remaining = math.inf if self.end is None else self.end - self.job_tick * self.dt * self.every  # after the lead
+        if remaining > 0.0:
+            horizons = [min(h, remaining) for h in horizons]
+        steps = [self._steps(h, step) for h in horizons]
         return StagedPrediction(
             theta,
             lam,
@@ -226,7 +237,7 @@ class GuardedPacingMotion(PacingMotion):
             fan_out=self._fan_out,
             step=step,
             steps=max(steps),
-            checkpoint=min(steps) if len(steps) == 2 else None,
+            checkpoint=min(steps) if len(steps) == 2 and min(steps) < max(steps) else None,
         )
 
     def _steps(self, horizon: float, step: float) -> int:
@@ -237,6 +248,8 @@ class GuardedPacingMotion(PacingMotion):
         """The candidates' scores over ``horizon``, and over ``confirm`` (``None`` without it)."""
         if self.confirm is None:
             return job.scores, None
+        if job.checkpoint is None:  # both horizons cut to the same length by ``end``
+            return job.scores, job.scores
         if self.confirm >= self.horizon:
             return job.checkpoint_scores, job.scores
         return job.scores, job.checkpoint_scores
