@@ -122,6 +122,23 @@ def test_a_guard_with_confirm_scores_both_horizons_from_one_rollout():
         GuardedPacingMotion(3, 0, confirm=0.0)
 
 
+@pytest.mark.parametrize(("end", "steps"), [(3.0, 30), (1.0, 200), (None, 200)])
+def test_end_scores_a_prediction_only_up_to_the_runs_end(end, steps):
+    """The first decision (started at tick 100, its lead ending at 1.5 s) is scored over the 1.5 s left before
+    ``end`` = 3 s (30 steps of 50 ms); past ``end``, or without it, over the whole 10 s horizon."""
+    group = TABLE2[1]
+    block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=end)
+    _closed_loop(group, block, 1.49, [])
+    assert block.job.done and block.job.steps == steps
+    with_confirm = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=3.0, confirm=20.0)
+    _closed_loop(group, with_confirm, 1.49, [])
+    job = with_confirm.job
+    assert job.steps == 30 and job.checkpoint is None  # both horizons cut to the same 1.5 s
+    np.testing.assert_array_equal(with_confirm._horizon_scores(job)[0], with_confirm._horizon_scores(job)[1])
+    with pytest.raises(ValueError, match="end must be"):
+        GuardedPacingMotion(3, 0, end=-1.0)
+
+
 def test_phase_error_ignores_a_common_offset():
     rng = np.random.default_rng(0)
     theta = rng.uniform(0, 2 * np.pi, 6)
