@@ -167,7 +167,7 @@ class OptimalBlender(Block):
         emitted movement is the checked one, under a terminal guard; ``"tail"``: only a plan committed within
         ``knot_spacing`` samples of its end emits itself (:mod:`~cogblocks.amplification.emission`).
     prediction_hold : int
-        Samples over which a decision's prediction keeps, fading, its error on the last measured sample
+        Samples over which a prediction keeps, fading, its error on the last measured sample
         (:func:`~cogblocks.amplification.plan.held_prediction`; 0: none).
     track_past : bool
         With ``solve_ticks`` > 1 (linearised only): every tick of a spread solve puts the past emitted so far
@@ -279,14 +279,12 @@ class OptimalBlender(Block):
         self.add_state("altered", np.zeros((n, 3)))  # v_a emitted, by tick
         self.add_state("plan", np.zeros((n, 3)))  # the correction u in force, by tick
         self.add_state("end", 0)  # its planned length L; 0: no plan yet
-        if self.emit != "human":
-            self.add_state("basis", np.zeros((n, 3)))  # the prediction the plan in force was made on
-        if self.emit == "tail":
-            self.add_state("as_planned", 0)  # whether the plan in force emits itself (emission.as_planned)
+        if self.emit != "human":  # the prediction the plan in force was made on, and whether it emits itself
+            self.add_state("basis", np.zeros((n, 3)))
+            self.add_state("as_planned", 0)
         self.add_state("table_c", math.nan)  # the table's c while falling back to it
         self.add_state("handled", 0)  # decisions handled
-        # of the constraints (one encoding constraint per network) and the slack's bound: warm start
-        self.add_state("multipliers", np.zeros(len(networks) + 3))
+        self.add_state("multipliers", np.zeros(len(networks) + 3))  # warm start: networks, terminal, speed, slack
         self.add_state("fallbacks", 0)
         self.results: list[PlanResult] = []
 
@@ -383,9 +381,7 @@ class OptimalBlender(Block):
         lib, n = self.library, len(self.human)
         t0 = min(t + self.solve_ticks - 1, n - 1)
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
-        held = np.zeros_like(self.human)  # the prediction from t − 1 on (none for a human at rest)
-        if not at_rest:
-            held = held_prediction(lib.velocity[nearest], self.human, t, self.prediction_hold)
+        held = held_prediction(lib.velocity[nearest], self.human, t, self.prediction_hold, moving=not at_rest)
         anchor = held[t0 - 1]  # emitting a plan, the prediction at t0 − 1
         # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
         # is enough: the altered movement may end before the human's, having covered the same distance sooner
@@ -393,8 +389,7 @@ class OptimalBlender(Block):
         if not at_rest and (self.e_des or state["end"] == 0):
             length = max(length, t0 + self.knot_spacing)
         length = min(length, n)
-        predicted = held.copy()
-        predicted[:t] = 0.0
+        predicted = np.where(np.arange(n)[:, None] < t, 0.0, held)
         job = {"t": t, "t0": t0, "length": length, "predicted": predicted, "run": None, "problem": None,
                "ticks": 0, "cpu": 0.0, "reference": reference, "anchor": anchor}  # fmt: skip
         if length <= t0:  # the planned movement is over: nothing left to decide
@@ -415,7 +410,7 @@ class OptimalBlender(Block):
                 problem, w0, self._z_target, self._z_clip, self._delta, self.delta_pos, self.iterations
             )
         else:
-            job["solved"] = solve_decision(self, problem, w0)  # knots (None: fall back), multipliers, status
+            job["solved"] = self._solve(problem, w0)
         return job
 
     def _finish(self, t: int, new: dict[str, Any]) -> dict[str, Any]:
@@ -444,8 +439,7 @@ class OptimalBlender(Block):
                 plan[length:] = 0.0
                 out.update(plan=plan, end=length, table_c=math.nan, multipliers=multipliers)
                 if self.emit != "human":  # emitted as planned: re-anchored on what was emitted, v_a continuous
-                    planned = self.emit == "plan" or length - t0 <= self.knot_spacing
-                    out.update({"as_planned": int(planned)} if self.emit == "tail" else {})
+                    out["as_planned"] = planned = int(self.emit == "plan" or length - t0 <= self.knot_spacing)
                     emitted = self.altered[t0 - 1] if planned and t >= t0 > 0 else None
                     out["plan"], out["basis"] = rebased(plan, self.basis, job["predicted"], t0, problem["phi0"],
                                                         problem["u_prev"], emitted, job["anchor"])  # fmt: skip
@@ -474,12 +468,15 @@ class OptimalBlender(Block):
     def _in_force(self) -> dict[str, Any]:
         """The state that decides what the block emits: the plan, its length, the table's c (and the plan's basis)."""
         state = {"plan": self.plan, "end": self.end, "table_c": self.table_c}
-        state |= {"basis": self.basis} if self.emit != "human" else {}
-        return state | ({"as_planned": self.as_planned} if self.emit == "tail" else {})
+        return state | ({"basis": self.basis, "as_planned": self.as_planned} if self.emit != "human" else {})
 
     def _logit(self, x: np.ndarray) -> float:
         """The logit of the least favourable network for ``e_des`` (the minimum of ``sign·z``, times ``sign``)."""
         return float(self._sign * np.min(self._sign * self._stack.logits(x)))
+
+    def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
+        """Knots (None: fall back), multipliers and status of one casadi solve (:func:`solve_decision`)."""
+        return solve_decision(self, problem, w0)
 
     def _emission(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> np.ndarray:
         """The movement emitted under ``state`` (the past, then from ``t`` on) if the human follows ``predicted``."""

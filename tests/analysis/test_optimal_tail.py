@@ -110,6 +110,7 @@ def test_held_prediction(seed, hold):
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
     if hold:  # at the last measured sample the prediction is the measurement
         np.testing.assert_allclose(got[t - 1], human[t - 1], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(held_prediction(velocity, human, t, hold, moving=False), 0.0)  # a human at rest
 
 
 class PredictionRecorder(RecordingBlender):
