@@ -14,6 +14,11 @@ plus a correction ``u``; it is checked on ``b + u``. Two ways to emit it:
   with), the excess is taken back evenly over the ticks left to the plan's end, so it is within
   ``δ_pos`` at the end and the emitted velocity changes by small steps, not by the prediction's error.
 
+- ``"tail"``: ``v_h + u``, except a plan committed within ``knot_spacing`` samples of its end (with decisions
+  every ``knot_spacing`` samples, the last one), emitted as ``b + u`` under the guard: the movement after the
+  last commit is the checked one, and the terminal gap takes the prediction's error over that tail only
+  (docs/pop-amplification.md, "Eighth round"). The state in force says which (``as_planned``).
+
 Emitting the plan, a committed plan is also **re-anchored** (:func:`rebased`): its held correction is
 taken from the sample actually emitted before it, not the one its problem assumed (they differ after the
 pass-through or the guard), so that the emitted velocity stays continuous; its check is made after that.
@@ -29,10 +34,15 @@ import numpy as np
 from cogblocks.amplification.blending import blend
 from cogblocks.amplification.plan import equivalent_c
 
-__all__ = ["EMISSIONS", "emit_tick", "final_gap", "guarded_velocity", "planned_movement", "rebased"]
+__all__ = ["EMISSIONS", "as_planned", "emit_tick", "final_gap", "guarded_velocity", "planned_movement", "rebased"]
 
 #: The values of ``OptimalBlender(emit=...)``.
-EMISSIONS = ("human", "plan")
+EMISSIONS = ("human", "plan", "tail")
+
+
+def as_planned(state: dict[str, Any], emit: str) -> bool:
+    """Whether the plan in force under ``state`` is emitted as planned (``b + u``) rather than as ``v_h + u``."""
+    return emit == "plan" or (emit == "tail" and bool(state.get("as_planned", 0)))
 
 
 def emit_tick(
@@ -41,10 +51,10 @@ def emit_tick(
 ) -> tuple[float, bool]:  # fmt: skip
     """Write tick ``t``'s velocity under ``state`` (the block's state in force) into ``v_a``, before any ``v_u``.
 
-    The plan (``v_h + u``, or the guarded ``b + u`` with ``emit="plan"``; zero from its end on), else the
+    The plan (``v_h + u``, or the guarded ``b + u`` when :func:`as_planned`; zero from its end on), else the
     table's blend, else ``v_h``. Returns the diagnostic ``c`` and whether the guard changed the velocity.
     """
-    if state["end"] > 0 and emit == "plan" and t < state["end"]:
+    if state["end"] > 0 and as_planned(state, emit) and t < state["end"]:
         v_a[...], guarded = guarded_velocity(
             t, v_h, altered, human, state["plan"], state["basis"], state["end"], dt, delta_pos
         )
@@ -66,7 +76,7 @@ def planned_movement(
     ``predicted``; ``reference`` is the reference movement's velocity (for the table's blend)."""
     future = predicted[t:]
     if state["end"] > 0:  # emitting the plan, the future is its own prediction's, not this one's
-        future = (state["basis"][t:] if emit == "plan" else future) + state["plan"][t:]
+        future = (state["basis"][t:] if as_planned(state, emit) else future) + state["plan"][t:]
         future[max(state["end"] - t, 0) :] = 0.0
     elif math.isfinite(state["table_c"]):
         c = state["table_c"]

@@ -39,7 +39,7 @@ from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, solve_deci
 from cogblocks.amplification.linearised import LinearisedSolver, one_blas_thread
 from cogblocks.amplification.members import StackedNetworks
 from cogblocks.amplification.past import follow_past
-from cogblocks.amplification.plan import PlanResult, plan_problem, sigmoid
+from cogblocks.amplification.plan import PlanResult, held_prediction, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
 from cogblocks.blocks.samples import plausible
@@ -120,6 +120,8 @@ class OptimalBlender(Block):
     margin : float
         Planned ε̂ beyond the clipping threshold (0.05: the plan asks for ε̂ ≥ 0.95, or ≤ 0.05),
         against the prediction's error.
+    removal_margin : float, optional
+        The margin when removing fear (``e_des = 0``); by default ``margin``.
     delta_pos : float
         δ_pos in mm (20).
     terminal_margin : float
@@ -160,9 +162,13 @@ class OptimalBlender(Block):
         distance from the subspace, so the plan stays near real movements of the class.
     realism : float
         Weight of that penalty against ``Σ‖u‖²`` (only with ``subspace``).
-    emit : {"human", "plan"}
+    emit : {"human", "plan", "tail"}
         What a plan emits: ``v_h + u`` (default) or the plan itself, its prediction plus ``u``, so that the
-        emitted movement is the checked one, under a terminal guard (:mod:`~cogblocks.amplification.emission`).
+        emitted movement is the checked one, under a terminal guard; ``"tail"``: only a plan committed within
+        ``knot_spacing`` samples of its end emits itself (:mod:`~cogblocks.amplification.emission`).
+    prediction_hold : int
+        Samples over which a prediction keeps, fading, its error on the last measured sample
+        (:func:`~cogblocks.amplification.plan.held_prediction`; 0: none).
     track_past : bool
         With ``solve_ticks`` > 1 (linearised only): every tick of a spread solve puts the past emitted so far
         into its problem in place of the prediction, the iterations going on from there
@@ -203,6 +209,8 @@ class OptimalBlender(Block):
         iterations: int = 10,
         emit: str = "human",
         track_past: bool = False,
+        removal_margin: float | None = None,
+        prediction_hold: int = 0,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -217,6 +225,9 @@ class OptimalBlender(Block):
                 f"got {type(table).__name__} for e_des={getattr(table, 'e_des', None)}"
             )
         self.margin = finite_number(self, "margin", margin, low=0.0, high=1.0 - CLIP_HIGH, high_open=True)
+        self.removal_margin = margin if removal_margin is None else removal_margin
+        finite_number(self, "removal_margin", self.removal_margin, low=0.0, high=1.0 - CLIP_HIGH, high_open=True)
+        self.prediction_hold = positive_int(self, "prediction_hold", prediction_hold, minimum=0)
         self.delta_pos = finite_number(self, "delta_pos", delta_pos, low=0.0, low_open=True)
         self.terminal_margin = finite_number(
             self, "terminal_margin", terminal_margin, low=0.0, high=self.delta_pos, high_open=True
@@ -254,7 +265,8 @@ class OptimalBlender(Block):
         self._sign = 1.0 if self.e_des == 1 else -1.0
         stack = self._stack
         self._linear = LinearisedSolver(stack.w1, stack.b1, stack.w2, stack.b2, self._sign)
-        self._z_target = math.log((CLIP_HIGH + self.margin) / (1.0 - CLIP_HIGH - self.margin))
+        margin = self.margin if self.e_des else self.removal_margin
+        self._z_target = math.log((CLIP_HIGH + margin) / (1.0 - CLIP_HIGH - margin))
         self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)
         self._pending: dict[str, Any] | None = None
         self._job: dict[str, Any] | None = None  # a decision whose solve spans several ticks
@@ -267,12 +279,12 @@ class OptimalBlender(Block):
         self.add_state("altered", np.zeros((n, 3)))  # v_a emitted, by tick
         self.add_state("plan", np.zeros((n, 3)))  # the correction u in force, by tick
         self.add_state("end", 0)  # its planned length L; 0: no plan yet
-        if self.emit == "plan":
-            self.add_state("basis", np.zeros((n, 3)))  # the prediction the plan in force was made on
+        if self.emit != "human":  # the prediction the plan in force was made on, and whether it emits itself
+            self.add_state("basis", np.zeros((n, 3)))
+            self.add_state("as_planned", 0)
         self.add_state("table_c", math.nan)  # the table's c while falling back to it
         self.add_state("handled", 0)  # decisions handled
-        # of the constraints (one encoding constraint per network) and the slack's bound: warm start
-        self.add_state("multipliers", np.zeros(len(networks) + 3))
+        self.add_state("multipliers", np.zeros(len(networks) + 3))  # warm start: networks, terminal, speed, slack
         self.add_state("fallbacks", 0)
         self.results: list[PlanResult] = []
 
@@ -369,16 +381,15 @@ class OptimalBlender(Block):
         lib, n = self.library, len(self.human)
         t0 = min(t + self.solve_ticks - 1, n - 1)
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
-        anchor = lib.velocity[nearest, t0 - 1] * (t0 > 0 and not at_rest)  # emit="plan": the prediction at t0 − 1
+        held = held_prediction(lib.velocity[nearest], self.human, t, self.prediction_hold, moving=not at_rest)
+        anchor = held[t0 - 1]  # emitting a plan, the prediction at t0 − 1
         # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
         # is enough: the altered movement may end before the human's, having covered the same distance sooner
         length = max(state["end"], int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
         if not at_rest and (self.e_des or state["end"] == 0):
             length = max(length, t0 + self.knot_spacing)
         length = min(length, n)
-        predicted = np.zeros_like(self.human)
-        if not at_rest:
-            predicted[t:] = lib.velocity[nearest, t:n]
+        predicted = np.where(np.arange(n)[:, None] < t, 0.0, held)
         job = {"t": t, "t0": t0, "length": length, "predicted": predicted, "run": None, "problem": None,
                "ticks": 0, "cpu": 0.0, "reference": reference, "anchor": anchor}  # fmt: skip
         if length <= t0:  # the planned movement is over: nothing left to decide
@@ -427,8 +438,9 @@ class OptimalBlender(Block):
                 plan[t0:length] = problem["phi0"][:, None] * problem["u_prev"] + problem["phi"] @ w.reshape(3, -1).T
                 plan[length:] = 0.0
                 out.update(plan=plan, end=length, table_c=math.nan, multipliers=multipliers)
-                if self.emit == "plan":  # re-anchored on what was emitted, so that v_a stays continuous
-                    emitted = self.altered[t0 - 1] if t >= t0 > 0 else None
+                if self.emit != "human":  # emitted as planned: re-anchored on what was emitted, v_a continuous
+                    out["as_planned"] = planned = int(self.emit == "plan" or length - t0 <= self.knot_spacing)
+                    emitted = self.altered[t0 - 1] if planned and t >= t0 > 0 else None
                     out["plan"], out["basis"] = rebased(plan, self.basis, job["predicted"], t0, problem["phi0"],
                                                         problem["u_prev"], emitted, job["anchor"])  # fmt: skip
         state = {**self._in_force(), **new, **out}
@@ -456,7 +468,7 @@ class OptimalBlender(Block):
     def _in_force(self) -> dict[str, Any]:
         """The state that decides what the block emits: the plan, its length, the table's c (and the plan's basis)."""
         state = {"plan": self.plan, "end": self.end, "table_c": self.table_c}
-        return state | ({"basis": self.basis} if self.emit == "plan" else {})
+        return state | ({"basis": self.basis, "as_planned": self.as_planned} if self.emit != "human" else {})
 
     def _logit(self, x: np.ndarray) -> float:
         """The logit of the least favourable network for ``e_des`` (the minimum of ``sign·z``, times ``sign``)."""

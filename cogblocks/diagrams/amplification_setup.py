@@ -40,8 +40,9 @@ __all__ = [
 #: seventh round, validation libraries; see docs/pop-amplification.md): the sequential-QP solver on the exact
 #: networks, spread over 6 ticks of at most 4 ms of CPU time each (building, solving and checking included; 8
 #: until the seventh round) and 40 iterations, plans for
-#: ε̂ ≥ 0.999 (≤ 0.001), and a penalty (weight ``realism``) on the altered movement's distance from the
-#: subspace of the desired class's ``components`` leading principal directions.
+#: ε̂ ≥ 0.999 encoding fear and, since the eighth round, ε̂ ≤ 0.00001 removing it (0.001 before), and a penalty
+#: (weight ``realism``) on the altered movement's distance from the subspace of the desired class's ``components``
+#: leading principal directions.
 OPTIMISED = {
     "solver": "linearised",
     "time_limit_ms": 4.0,
@@ -49,6 +50,7 @@ OPTIMISED = {
     "iterations": 40,
     "realism": 3000.0,
     "margin": 0.099,
+    "removal_margin": 0.09999,
     "components": 12,
 }
 

@@ -5,7 +5,8 @@ Usage::
     python -m cogblocks.experiments.amplification_fresh --library-seed 2027 [--share 0.3] [--limit N]
         [--variants blend blend_rl optimised] [--json]
         [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
-        [--solve-ticks N] [--realism R] [--components C]
+        [--solve-ticks N] [--realism R] [--components C] [--emit E] [--removal-margin M] [--prediction-hold S]
+    python -m cogblocks.experiments.amplification_fresh --library-seed 3000 --real
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
 figures grow optimistic. Here the humans come from ``generate_reach_library(library_seed)``, a seed no
@@ -16,9 +17,12 @@ subspace), in both directions; ``--share`` replays a seeded, stratified share of
 (``ReachLibrary.split(share, 0)``'s second part, as large as the held-out part for 0.3). Prints the rows
 of :func:`~cogblocks.diagrams.amplification.run_amplification` (``e_des = 1`` at the top level,
 ``e_des = 0`` under ``"e_des_0"``). ``--profile-members``, ``--kinematic-members`` and ``--kinematic-weights``
-replace the constrained networks, ``--solve-ticks``, ``--realism`` and ``--components`` the optimised blender's
-settings (as ``amplification_inner``'s), to try a setting on a *validation* library (a seed declared as such
-before it is looked at); without them the chain is the shipped one.
+replace the constrained networks, ``--solve-ticks``, ``--realism``, ``--components``, ``--emit``, ``--removal-margin``
+and ``--prediction-hold`` the optimised blender's settings (as ``amplification_inner``'s), to try a setting on a
+*validation* library (a seed declared as such before it is looked at); without them the chain is the shipped one.
+``--real`` prints instead what the shipped judges decide on the library's *real* movements
+(:func:`real_shares`): how often the ensemble judge calls a real movement of ``e_des`` so, the scale of its
+share on the altered ones.
 """
 
 from __future__ import annotations
@@ -32,6 +36,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from cogblocks.amplification.emission import EMISSIONS
+from cogblocks.amplification.encoder import FEAR, NO_FEAR
 from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 from cogblocks.diagrams.amplification import run_amplification
@@ -44,7 +50,7 @@ from cogblocks.diagrams.amplification_setup import (
     blender_networks,
 )
 
-__all__ = ["FRESH_SEED", "fresh_setup", "main", "run_fresh"]
+__all__ = ["FRESH_SEED", "fresh_setup", "main", "real_shares", "run_fresh"]
 
 #: The library seed of the fresh evaluation: chosen before any result on it was seen, used nowhere else.
 FRESH_SEED = 2027
@@ -111,6 +117,24 @@ def run_fresh(
     return rows
 
 
+def real_shares(library_seed: int, humans: ReachLibrary | None = None) -> dict[str, Any]:
+    """The shipped judges' decisions on the real movements of ``generate_reach_library(library_seed)`` (or ``humans``).
+
+    Per class (``"fear"``, ``"no_fear"``) and judge: ``correct``, the share of the class's movements decided as
+    their class, and ``wrong``, decided as the other class (the ensemble judge leaves the rest undecided); ``n``.
+    """
+    library = generate_reach_library(library_seed) if humans is None else humans
+    decisions = amplification_judges().decide(library.velocity)
+    rows: dict[str, Any] = {"library_seed": library_seed}
+    for name, fear, own, other in (("fear", True, FEAR, NO_FEAR), ("no_fear", False, NO_FEAR, FEAR)):
+        members = library.fear == fear
+        rows[name] = {"n": int(members.sum())} | {
+            judge: {"correct": float(np.mean(d[members] == own)), "wrong": float(np.mean(d[members] == other))}
+            for judge, d in decisions.items()
+        }
+    return rows
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point: print both directions on a fresh library (JSON with ``--json``)."""
     parser = argparse.ArgumentParser(prog="python -m cogblocks.experiments.amplification_fresh", description=__doc__)
@@ -131,9 +155,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--solve-ticks", type=int, default=OPTIMISED["solve_ticks"])
     parser.add_argument("--realism", type=float, default=OPTIMISED["realism"])
     parser.add_argument("--components", type=int, default=OPTIMISED["components"])
+    parser.add_argument("--emit", default=OPTIMISED.get("emit", "human"), choices=EMISSIONS)
+    parser.add_argument("--removal-margin", type=float, default=OPTIMISED.get("removal_margin"))
+    parser.add_argument("--prediction-hold", type=int, default=OPTIMISED.get("prediction_hold", 0))
+    parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    optimised = {"solve_ticks": args.solve_ticks, "realism": args.realism, "components": args.components}
+    if args.real:
+        print(json.dumps(real_shares(args.library_seed)))
+        return 0
+    names = ("solve_ticks", "realism", "components", "emit", "removal_margin", "prediction_hold")
+    optimised = {name: getattr(args, name) for name in names}
     given = {"profile": args.profile_members, "kinematic": args.kinematic_members}
     members = {name: count for name, count in given.items() if count is not None}
     rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des,

@@ -2,7 +2,7 @@
 
 Usage::
 
-    python -m cogblocks.experiments.amplification_gap --e-des 0 --limit 30 [--emit human|plan] [--track-past 0|1]
+    python -m cogblocks.experiments.amplification_gap --e-des 0 --limit 30 [--emit human|plan|tail] [--track-past 0|1]
 
 Each plan is checked on the movement the block *would* emit if the human followed the prediction (the
 emitted past, then the plan in force). On the inner split
@@ -26,6 +26,7 @@ import numpy as np
 import torch
 
 from cogblocks.amplification import OptimalBlender
+from cogblocks.amplification.emission import EMISSIONS
 from cogblocks.amplification.judges import FEATURES, kinematic_features
 from cogblocks.diagrams.amplification import replay_movement
 from cogblocks.diagrams.amplification_setup import (
@@ -142,7 +143,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m cogblocks.experiments.amplification_gap", description=__doc__)
     parser.add_argument("--e-des", type=int, choices=(0, 1), default=0)
     parser.add_argument("--limit", type=int, default=30, help="inner movements replayed (default 30)")
-    parser.add_argument("--emit", choices=("human", "plan"), default=OPTIMISED.get("emit", "human"))
+    parser.add_argument("--emit", choices=EMISSIONS, default=OPTIMISED.get("emit", "human"))
     parser.add_argument("--track-past", type=int, choices=(0, 1), default=int(OPTIMISED.get("track_past", False)))
     parser.add_argument("--per-movement", action="store_true", help="print every movement's row too")
     args = parser.parse_args(argv)

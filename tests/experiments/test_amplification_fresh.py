@@ -9,7 +9,8 @@ import torch
 from cogblocks.amplification import NoCorrection
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
-from cogblocks.experiments.amplification_fresh import FRESH_SEED, fresh_setup, main, run_fresh
+from cogblocks.diagrams.amplification_setup import amplification_judges
+from cogblocks.experiments.amplification_fresh import FRESH_SEED, fresh_setup, main, real_shares, run_fresh
 from cogblocks.sim import Simulator
 
 torch.set_num_threads(1)
@@ -85,3 +86,31 @@ def test_run_fresh_constrains_the_networks_and_settings_asked_for(humans, monkey
     assert shipped["optimised"] == {k: v for k, v in OPTIMISED.items() if k != "components"}
     assert len(changed["setup"].subspace) == 5 and changed["setup"].subspace.e_des == 0
     assert shipped["setup"].subspace is amplification_setup(None, 0).subspace
+
+
+def test_real_shares_are_the_judges_on_the_real_movements(humans):
+    rows = real_shares(FRESH_SEED, humans)
+    judges = amplification_judges()
+    for name, fear in (("fear", True), ("no_fear", False)):
+        movements = humans.velocity[humans.fear == fear]
+        assert rows[name]["n"] == len(movements) == 2  # the fixture: 2 movements of each class
+        for judge in ("ensemble", "kinematic"):  # one movement at a time: 1 fear, 0 no fear, −1 undecided
+            decided = np.array([judges.decide(m[None])[judge][0] for m in movements])
+            assert rows[name][judge]["correct"] == pytest.approx(np.mean(decided == int(fear)))
+            assert rows[name][judge]["wrong"] == pytest.approx(np.mean(decided == 1 - int(fear)))
+    assert rows["no_fear"]["kinematic"]["correct"] + rows["no_fear"]["kinematic"]["wrong"] == pytest.approx(1.0)
+
+
+def test_command_passes_the_eighth_round_options(monkeypatch, capsys):
+    import cogblocks.experiments.amplification_fresh as fresh
+
+    calls = []
+    monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
+    argv = ["--json", "--emit", "tail", "--removal-margin", "0.09999", "--prediction-hold", "20"]
+    assert main(argv) == 0
+    assert {k: calls[0]["optimised"][k] for k in ("emit", "removal_margin", "prediction_hold")} == {
+        "emit": "tail", "removal_margin": 0.09999, "prediction_hold": 20,
+    }  # fmt: skip
+    monkeypatch.setattr(fresh, "real_shares", lambda seed: {"library_seed": seed, "fear": {}})
+    assert main(["--library-seed", "3", "--real"]) == 0 and len(calls) == 1
+    assert json.loads(capsys.readouterr().out.splitlines()[-1]) == {"library_seed": 3, "fear": {}}

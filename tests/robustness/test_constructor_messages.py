@@ -418,8 +418,10 @@ CASES = [
     case("OptimalBlender", "rest_speed", -1.0, "[0.0, inf)"),
     case("OptimalBlender", "solve_ticks", 0, "integer >= 1"),
     case("OptimalBlender", "iterations", 0, "integer >= 1"),
-    case("OptimalBlender", "emit", "predicted", "one of ['human', 'plan']"),
+    case("OptimalBlender", "emit", "predicted", "one of ['human', 'plan', 'tail']"),
     case("OptimalBlender", "track_past", 1, "True or False"),
+    case("OptimalBlender", "removal_margin", 0.5, "[0.0, 0.09"),
+    case("OptimalBlender", "prediction_hold", -1, "integer >= 0"),
 ]
 
 

@@ -1,0 +1,184 @@
+"""The eighth round's options of the optimised blender: the last plan emitted as planned (``emit="tail"``), a
+removal margin and the prediction's held error (``prediction_hold``)."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from cogblocks.amplification import OptimalBlender
+from cogblocks.amplification.plan import held_prediction
+from cogblocks.diagrams.amplification import amplification_setup, replay_movement
+from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
+from cogblocks.experiments.amplification_gap import RecordingBlender
+
+torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="module", params=[1, 0])
+def setup(request):
+    return amplification_setup(None, request.param)
+
+
+@pytest.fixture(scope="module")
+def networks(setup):
+    return blender_networks(setup.encoder)
+
+
+def options(**extra):
+    """:data:`OPTIMISED` with a budget no solve reaches: the plans depend on the iteration limit only."""
+    settings = {k: v for k, v in OPTIMISED.items() if k != "components"}
+    return {**settings, "time_limit_ms": 1000.0, **extra}
+
+
+def replay(setup, networks, human, **extra):
+    blender = RecordingBlender(
+        setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace, **options(**extra)
+    )
+    trace = replay_movement(setup, human, blender, probes={"nearest": "l2.nearest"})
+    return blender, trace
+
+
+def commits(blender):
+    """Indices of the committed decisions and their commit ticks."""
+    index = [i for i, r in enumerate(blender.results) if r.status in ("converged", "accepted")]
+    return index, [blender.results[i].tick + blender.solve_ticks - 1 for i in index]
+
+
+@pytest.mark.parametrize("rank", [0, 1])
+def test_tail_emits_the_last_plan_as_it_was_checked(setup, networks, rank):
+    human = int(setup.humans[rank])
+    plain, plain_trace = replay(setup, networks, human)
+    tail, trace = replay(setup, networks, human, emit="tail")
+    index, ticks = commits(tail)
+    t0, end, last = ticks[-1], tail.end, tail.results[index[-1]]
+    assert commits(plain)[1] == ticks and plain.end == end and end - t0 <= tail.knot_spacing
+    assert tail.as_planned == 1
+    # up to the last commit nothing differs from emit="human": the same plans, the same emission
+    untimed = [[dataclasses.replace(r, solve_ms=0.0) for r in b.results[: index[-1]]] for b in (plain, tail)]
+    assert untimed[0] == untimed[1]
+    np.testing.assert_array_equal(trace["v_a"][:t0], plain_trace["v_a"][:t0])
+    # from it: the last decision's prediction plus the correction emit="human" adds to the human, with the
+    # prediction's error on the sample before t0 held by the first knot's weight (re-anchored: v_a continuous)
+    decision = last.tick
+    moving = np.linalg.norm(trace["v_h"][decision - 1]) > tail.rest_speed
+    b = setup.movements.velocity[int(trace["nearest"][decision])] * moving
+    second_knot = min(t0 - 1 + tail.knot_spacing, end - 1)  # the first knot's weight falls to 0 at the next knot
+    phi0 = np.interp(np.arange(t0, end), [t0 - 1, second_knot], [1.0, 0.0])
+    error = trace["v_h"][t0 - 1] - b[t0 - 1]
+    expected = b[t0:end] + plain.plan[t0:end] + phi0[:, None] * error
+    free = [s for s in range(t0, end) if s not in tail.guarded_ticks]
+    np.testing.assert_allclose(trace["v_a"][free], expected[np.subtract(free, t0)], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(trace["v_a"][end:], 0.0)
+    # no guard on these movements: the constrained networks see the emitted movement as the last check did
+    assert free == list(range(t0, end))
+    eps = tail.member_eps(np.asarray(trace["v_a"], dtype=np.float64))
+    assert (eps.min() if setup.e_des else eps.max()) == pytest.approx(last.eps, abs=1e-9)
+
+
+def test_earlier_plans_emit_the_human(setup, networks):
+    tail, trace = replay(setup, networks, int(setup.humans[0]), emit="tail")
+    index, ticks = commits(tail)
+    assert len(ticks) >= 3
+    v_h = np.asarray(trace["v_h"], dtype=np.float64)
+    # each earlier plan ends more than knot_spacing samples after its commit: until the next commit it emits
+    # v_h + u, u being its check's movement less the decision's prediction (the library movement)
+    for k, i in enumerate(index[:-1]):
+        assert tail.end - ticks[k] > tail.knot_spacing
+        decision = tail.results[i].tick
+        moving = np.linalg.norm(v_h[decision - 1]) > tail.rest_speed
+        b = setup.movements.velocity[int(trace["nearest"][decision])] * moving
+        window = np.arange(ticks[k], ticks[k + 1])
+        u = tail.checked[i][window] - b[window]
+        np.testing.assert_allclose(trace["v_a"][window], v_h[window] + u, rtol=0, atol=1e-9)
+    assert not [s for s in tail.guarded_ticks if s < ticks[-1]]
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("hold", [0, 1, 7, 20])
+def test_held_prediction(seed, hold):
+    rng = np.random.default_rng(seed)
+    velocity, human = rng.normal(scale=90.0, size=(2, 60, 3))
+    t = int(rng.integers(1, 50))
+    got = held_prediction(velocity, human, t, hold)
+    expected = np.zeros((60, 3))
+    for s in range(t - 1, 60):  # the weight falls by 1/hold per sample from 1 at t − 1
+        weight = max(0.0, 1.0 - (s - (t - 1)) / hold) if hold else 0.0
+        expected[s] = velocity[s] + weight * (human[t - 1] - velocity[t - 1])
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
+    if hold:  # at the last measured sample the prediction is the measurement
+        np.testing.assert_allclose(got[t - 1], human[t - 1], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(held_prediction(velocity, human, t, hold, moving=False), 0.0)  # a human at rest
+
+
+class PredictionRecorder(RecordingBlender):
+    """Keeps every decision's tick and the prediction its problem and check were made on."""
+
+    def reset(self) -> None:
+        super().reset()
+        self.predictions = []
+
+    def _finish(self, t, new):
+        self.predictions.append((self._job["t"], self._job["predicted"].copy()))
+        return super()._finish(t, new)
+
+
+@pytest.mark.parametrize("hold", [0, 20])
+def test_decisions_plan_on_the_held_prediction(setup, networks, hold):
+    blender = PredictionRecorder(
+        setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace,
+        **options(prediction_hold=hold),
+    )  # fmt: skip
+    trace = replay_movement(setup, int(setup.humans[0]), blender, probes={"nearest": "l2.nearest"})
+    v_h = np.asarray(trace["v_h"], dtype=np.float64)
+    offsets = []
+    for decision, predicted in blender.predictions:
+        b = setup.movements.velocity[int(trace["nearest"][decision])]
+        expected = np.zeros_like(b)
+        if np.linalg.norm(v_h[decision - 1]) > blender.rest_speed:  # the library movement and its fading error
+            weight = np.maximum(1.0 - np.arange(len(b) - decision) / hold - 1.0 / hold, 0.0) if hold else 0.0
+            expected[decision:] = b[decision:] + np.multiply.outer(weight, v_h[decision - 1] - b[decision - 1])
+        np.testing.assert_allclose(predicted, expected, rtol=0, atol=1e-9)
+        offsets.append(np.abs(expected - np.where(expected != 0.0, b, 0.0)).max())
+    assert len(offsets) >= 3 and (max(offsets) > 1.0) == (hold > 0)
+    # and the check of the last committed plan is the emitted past, then that prediction plus the plan
+    index, ticks = commits(blender)
+    t0, end = ticks[-1], blender.end
+    last = dict(blender.predictions)[blender.results[index[-1]].tick]
+    np.testing.assert_allclose(blender.checked[index[-1]][t0:end], last[t0:end] + blender.plan[t0:end], atol=1e-9)
+
+
+def test_removal_margin_sets_the_removal_target_only(setup, networks):
+    blender = OptimalBlender(setup.movements, networks, setup.table, e_des=setup.e_des, removal_margin=0.09999,
+                             **{k: v for k, v in options().items() if "margin" not in k})  # fmt: skip
+    margin = 0.09999 if setup.e_des == 0 else 0.05  # encoding fear keeps ``margin`` (its default here)
+    assert blender._z_target == pytest.approx(math.log((0.9 + margin) / (0.1 - margin)))
+    others = {"e_des": setup.e_des, "solver": "linearised"}
+    assert OptimalBlender(setup.movements, networks, margin=0.02, **others).removal_margin == 0.02
+    with pytest.raises(ValueError, match="removal_margin"):
+        OptimalBlender(setup.movements, networks, removal_margin=0.1, **others)
+    with pytest.raises(ValueError, match="prediction_hold"):
+        OptimalBlender(setup.movements, networks, prediction_hold=-1, **others)
+    with pytest.raises(ValueError, match="emit"):
+        OptimalBlender(setup.movements, networks, emit="last", **others)
+
+
+def test_removal_plans_meet_the_removal_margin():
+    setup = amplification_setup(None, 0)
+    networks = blender_networks(setup.encoder)
+    human = int(setup.humans[0])
+    logits = {}
+    for margin in (None, 0.09999):
+        blender, _ = replay(setup, networks, human, removal_margin=margin, solve_ticks=1)
+        index = commits(blender)[0]
+        eps = np.array([blender.results[i].eps for i in index])
+        converged = np.array([blender.results[i].status == "converged" for i in index])
+        logits[margin] = np.log(eps / (1.0 - eps)), converged
+    # with one tick the check is the solver's own problem: a converged plan is at its target, the cheapest one
+    target = math.log(0.00001 / 0.99999)  # −11.5, against −6.9 for ε̂ ≤ 0.001
+    z, converged = logits[0.09999]
+    assert converged.any() and np.all(z[converged] <= target + 1e-3) and np.median(z) <= target + 0.5
+    z, converged = logits[None]
+    assert converged.any() and np.all(np.abs(z[converged] - math.log(0.001 / 0.999)) <= 0.5)
