@@ -32,18 +32,20 @@ from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.pacing import _MODES, MEAN, NONE, PACE, PacingMotion
 from cogblocks.sync.staged import PROGRESS, StagedPrediction
 
-__all__ = ["COMMIT", "MARGIN", "GuardedPacingMotion", "phase_error"]
+__all__ = ["COMMIT", "HORIZON", "MARGIN", "GuardedPacingMotion", "phase_error"]
 
 #: Default ``margin``: four times :class:`PacingMotion`'s. Re-tuned on the validation split (the shortest groups of
 #: ``random_groups(600, "validation", 0)``, docs/pop-sync.md "Guarded pacing motion computer"): 0.01 let predicted
 #: gains of ~0.012 in mean r act on a 15-participant ring near locking that lost 1.1 %; 0.02 leaves it unaltered.
 MARGIN = 0.02
 
-#: Default ``commit``: a chosen alteration is kept for 10 periods. Chosen on all 600 groups of
-#: ``random_groups(600, "validation", 0)`` between 0 and 10 by the project's selection rule (fewest groups lowered,
-#: then the highest mean change): both lowered 7 (1.2 %), mean +3.41 % against +3.34 % (docs/pop-sync.md, "Guarded
-#: pacing motion computer").
-COMMIT = 10
+#: Default ``horizon`` (s) and ``commit`` (periods): a 20 s prediction, every decision chosen afresh. Chosen on all
+#: 600 groups of ``random_groups(600, "validation", 0)``, with ``end`` the group's duration, by a rule declared before
+#: the run (fewest groups below -0.5 %, then fewest lowered, then the highest mean): lowered 1 (0.2 %), none below
+#: -0.5 %, mean +3.63 %, against horizon 10 s and commit 10's 6, 4 and +3.47 % (docs/pop-sync.md, "Guarded pacing
+#: motion computer"). Without ``end``, 20 s scored beyond a short run's end and lost on short groups.
+HORIZON = 20.0
+COMMIT = 0
 
 
 def phase_error(predicted: np.ndarray, observed: np.ndarray) -> float:
@@ -57,7 +59,8 @@ class GuardedPacingMotion(PacingMotion):
     """:class:`PacingMotion` with a check of its model's predictions and a decision spread over each period.
 
     See the module docstring. Every parameter of :class:`PacingMotion` keeps its meaning (``start``: what
-    the block does before its model has passed a check; ``margin`` defaults to :data:`MARGIN`), plus:
+    the block does before its model has passed a check; ``margin`` defaults to :data:`MARGIN`, ``horizon`` to
+    :data:`HORIZON`), plus:
 
     Parameters
     ----------
@@ -73,19 +76,11 @@ class GuardedPacingMotion(PacingMotion):
         again (default :data:`COMMIT`); 0: every decision chooses afresh. A prediction scores a candidate held
         over the whole horizon; re-choosing every period can stop a pacing plan half-way, where the group is
         left worse off than unaltered (docs/pop-sync.md).
-    confirm : float, optional
-        A second horizon (s). When given, the one rollout of a decision is scored over both ``horizon`` and
-        ``confirm`` (the longer one, with the shorter as a checkpoint on the way): the choice is made on
-        ``horizon``'s scores as without it, and a *new* alteration so chosen (started, or switched to) is taken only
-        if its score over ``confirm`` also beats doing nothing by ``margin``; otherwise the block goes on with the
-        alteration in progress if ``horizon`` still favours it by ``margin``, or does nothing. A plan that only one horizon
-        favours is where a prediction is most likely wrong; stopping a plan half-way is what loses most
-        (docs/pop-sync.md), so an alteration that goes on is not vetoed.
     end : float, optional
         When the run ends (s from the block's first tick), if known: a trial of fixed length, whose score is
         the mean r up to its end. Predictions are then scored only up to it (at least one Euler step), since
         what a plan gains after the end does not count; a pace that costs now and pays later is otherwise
-        chosen just before the end. Past ``end`` the horizons apply whole again.
+        chosen just before the end. Past ``end`` the horizon applies whole again.
 
     Notes
     -----
@@ -110,17 +105,15 @@ class GuardedPacingMotion(PacingMotion):
         fallback: str = "none",
         first_period: int | None = None,
         commit: int = COMMIT,
-        confirm: float | None = None,
         end: float | None = None,
         **pacing: Any,
     ) -> None:
-        super().__init__(n, assisted, **{"margin": MARGIN} | pacing)
+        super().__init__(n, assisted, **{"margin": MARGIN, "horizon": HORIZON} | pacing)
         self.tolerance = finite_number(self, "tolerance", tolerance, low=0.0)
         self.fallback = _MODES[one_of(self, "fallback", fallback, tuple(_MODES))]
         default_first = max(1, self.decide_every // 2)
         self.first_period = positive_int(self, "first_period", default_first if first_period is None else first_period)
         self.commit = positive_int(self, "commit", commit, minimum=0)
-        self.confirm = None if confirm is None else finite_number(self, "confirm", confirm, low=0.0, low_open=True)
         self.end = None if end is None else finite_number(self, "end", end, low=0.0, low_open=True)
         self.add_state("error", math.inf)  # the last check's error (inf: none passed yet)
         self.add_state("passed", False)  # a check has passed since the last reset
@@ -219,11 +212,8 @@ class GuardedPacingMotion(PacingMotion):
         """The staged prediction of a decision started on ``theta`` and ``lam``, its lead ``lead_time`` s long."""
         step = self._stable_step(model[1])
         lead_steps = min(self.max_steps, max(1, math.ceil(lead_time / step - 1e-9)))
-        horizons = [self.horizon] + ([] if self.confirm is None else [self.confirm])
         remaining = math.inf if self.end is None else self.end - self.job_tick * self.dt * self.every  # after the lead
-        if remaining > 0.0:
-            horizons = [min(h, remaining) for h in horizons]
-        steps = [self._steps(h, step) for h in horizons]
+        horizon = min(self.horizon, remaining) if remaining > 0.0 else self.horizon
         return StagedPrediction(
             theta,
             lam,
@@ -236,23 +226,8 @@ class GuardedPacingMotion(PacingMotion):
             lead_steps=lead_steps,
             fan_out=self._fan_out,
             step=step,
-            steps=max(steps),
-            checkpoint=min(steps) if len(steps) == 2 and min(steps) < max(steps) else None,
+            steps=min(self.max_steps, max(1, round(horizon / step))),
         )
-
-    def _steps(self, horizon: float, step: float) -> int:
-        """Euler steps of ``step`` s over ``horizon`` s, at least one and at most ``max_steps``."""
-        return min(self.max_steps, max(1, round(horizon / step)))
-
-    def _horizon_scores(self, job: StagedPrediction) -> tuple[np.ndarray, np.ndarray | None]:
-        """The candidates' scores over ``horizon``, and over ``confirm`` (``None`` without it)."""
-        if self.confirm is None:
-            return job.scores, None
-        if job.checkpoint is None:  # both horizons cut to the same length by ``end``
-            return job.scores, job.scores
-        if self.confirm >= self.horizon:
-            return job.checkpoint_scores, job.scores
-        return job.scores, job.checkpoint_scores
 
     def _fan_out(self, theta: np.ndarray, _lam: float) -> tuple[np.ndarray, ...]:
         """The candidates of the decision in progress, from the phases ``theta`` predicted at its lead's end.
@@ -276,7 +251,7 @@ class GuardedPacingMotion(PacingMotion):
             self.errors.append(self.error)
             self.passed = self.passed or self.error <= self.tolerance
         kinds, values, _ = job.candidates
-        scores = self._horizon_scores(job)
+        scores = job.scores
         if self.error > self.tolerance:
             mode, value = self.fallback, math.pi
             self.held = self.commit  # no commitment to the fallback
@@ -297,11 +272,8 @@ class GuardedPacingMotion(PacingMotion):
         self.mode, self.value = mode, value
         return False
 
-    def _committed(self, kinds: np.ndarray, scores: tuple[np.ndarray, np.ndarray | None]) -> int:
-        """The alteration in progress while it is committed (``commit``), otherwise the choice with the margins.
-
-        ``scores``: over ``horizon`` and over ``confirm`` (or ``None``), as :meth:`_horizon_scores` gives them.
-        """
+    def _committed(self, kinds: np.ndarray, scores: np.ndarray) -> int:
+        """The alteration in progress while it is committed (``commit``), otherwise the choice with the margins."""
         if self.mode == NONE:
             current = 0
         elif self.mode == MEAN:
@@ -311,11 +283,7 @@ class GuardedPacingMotion(PacingMotion):
         if self.mode != NONE and self.held < self.commit:
             self.held += 1
             return current
-        chosen, confirming = scores
-        best = self._best(kinds, chosen)
-        starting = best != current and kinds[best] != NONE
-        if starting and confirming is not None and confirming[best] < confirming[0] + self.margin:
-            best = current if self.mode != NONE and chosen[current] >= chosen[0] + self.margin else 0
+        best = self._best(kinds, scores)
         if best != current:
             self.held = 1
         return best

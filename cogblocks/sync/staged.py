@@ -7,8 +7,7 @@
 1. the *lead*: one trajectory under the reference being emitted now, for one decision period: it predicts the
    state the group will be in when the decision applies (and, compared with what is then observed, how well
    the model predicts);
-2. the *fan-out*: from the lead's end, every candidate over the horizon, as :func:`predicted_order` scores them;
-   optionally also scored over a shorter horizon on the way (``checkpoint``), so that one rollout gives both.
+2. the *fan-out*: from the lead's end, every candidate over the horizon, as :func:`predicted_order` scores them.
 
 A decision started at one period's first tick is then ready at the next period's first tick, with a cost
 per tick of ``ceil(total steps / period ticks)`` Euler steps over at most the number of candidates.
@@ -32,7 +31,7 @@ __all__ = ["PROGRESS", "StagedPrediction"]
 Candidates = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 #: Names of what :meth:`StagedPrediction.progress` returns: everything an advance changes.
-PROGRESS = ("theta", "lam", "kinds", "values", "anchors", "total", "checkpoint_total", "lead_theta", "done_steps")
+PROGRESS = ("theta", "lam", "kinds", "values", "anchors", "total", "lead_theta", "done_steps")
 
 
 class StagedPrediction:
@@ -60,9 +59,6 @@ class StagedPrediction:
         Euler step (s) of the fan-out.
     steps : int
         Euler steps of the fan-out; the scores are the mean r over them.
-    checkpoint : int, optional
-        Euler steps of the fan-out (at most ``steps``) after which the running total is kept as well: the
-        :attr:`checkpoint_scores` are the mean r over the first ``checkpoint`` steps.
 
     Attributes
     ----------
@@ -85,21 +81,17 @@ class StagedPrediction:
         fan_out: Callable[[np.ndarray, float], Candidates],
         step: float,
         steps: int,
-        checkpoint: int | None = None,
     ) -> None:
-        if checkpoint is not None and not 1 <= checkpoint <= steps:
-            raise ValueError(f"StagedPrediction: checkpoint must be within 1..steps={steps}, got {checkpoint}")
         self.model, self.adjacency, self.assisted, self.blender = model, adjacency, assisted, blender
         self.theta = np.asarray(theta, dtype=float)[None, :].copy()
         self.lam = np.array([float(lam)])
         self.rows: Candidates = tuple(np.array([float(v)]) for v in lead)
         self.lead_step, self.lead_steps = lead_time / lead_steps, lead_steps
-        self.fan_out, self.step, self.steps, self.checkpoint = fan_out, step, steps, checkpoint
+        self.fan_out, self.step, self.steps = fan_out, step, steps
         self.done_steps = 0  # of lead_steps + steps
         self.lead_theta: np.ndarray | None = None  # the predicted phases at the lead's end
         self.candidates: Candidates | None = None
         self.total = np.zeros(0)
-        self.checkpoint_total = np.zeros(0)
         self.evaluations = 0
 
     @property
@@ -118,15 +110,6 @@ class StagedPrediction:
             raise RuntimeError("StagedPrediction: the scores are known only once every step is done")
         return self.total / self.steps
 
-    @property
-    def checkpoint_scores(self) -> np.ndarray:
-        """The predicted mean r of every candidate over the first ``checkpoint`` steps of the fan-out (once done)."""
-        if self.checkpoint is None:
-            raise RuntimeError("StagedPrediction: no checkpoint was asked for")
-        if not self.done:
-            raise RuntimeError("StagedPrediction: the scores are known only once every step is done")
-        return self.checkpoint_total / self.checkpoint
-
     def advance(self, budget: int) -> None:
         """Run at most ``budget`` Euler steps (stopping when done)."""
         self.evaluations = 0
@@ -142,8 +125,6 @@ class StagedPrediction:
             self.evaluations += len(self.lam)
             if not lead:
                 self.total += r
-                if s + 1 == self.checkpoint:
-                    self.checkpoint_total = self.total.copy()
             self.done_steps += 1
             if self.done_steps == self.lead_steps:
                 self._fan_out()
@@ -152,8 +133,7 @@ class StagedPrediction:
         """What the prediction has computed so far (no copy), by the names of :data:`PROGRESS`.
 
         ``theta`` (rows, N), ``lam``, ``kinds``, ``values``, ``anchors`` and ``total`` (rows,) are the rows being
-        predicted (the lead's one row, then the candidates), ``checkpoint_total`` the candidates' total at the
-        checkpoint (empty before it), ``lead_theta`` (N,) the phases at the lead's end (NaN
+        predicted (the lead's one row, then the candidates), ``lead_theta`` (N,) the phases at the lead's end (NaN
         before it), ``done_steps`` the Euler steps done.
         """
         kinds, values, anchors = self.rows
@@ -165,7 +145,6 @@ class StagedPrediction:
             "values": values,
             "anchors": anchors,
             "total": self.total,
-            "checkpoint_total": self.checkpoint_total,
             "lead_theta": lead_theta,
             "done_steps": self.done_steps,
         }
@@ -175,8 +154,7 @@ class StagedPrediction:
 
         The arrays are copied: the prediction then advances on its own, as the one it was taken from would.
         """
-        names = ("theta", "lam", "total", "checkpoint_total")
-        self.theta, self.lam, self.total, self.checkpoint_total = (np.array(progress[name], dtype=float) for name in names)
+        self.theta, self.lam, self.total = (np.array(progress[name], dtype=float) for name in ("theta", "lam", "total"))
         self.rows = tuple(np.array(progress[name], dtype=float) for name in ("kinds", "values", "anchors"))
         self.done_steps = int(progress["done_steps"])
         fanned_out = self.done_steps >= self.lead_steps

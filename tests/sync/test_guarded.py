@@ -61,80 +61,14 @@ def test_staged_prediction_is_the_lead_then_predicted_order_in_any_chunks():
     assert np.ptp(want) > 1e-3
 
 
-def test_a_checkpoint_scores_the_first_steps_of_the_same_rollout():
-    """``checkpoint`` scores of a 40-step fan-out are those of a 15-step prediction; its full scores are unchanged."""
-    theta, lam, model, a, assisted = _problem()
-    lead = (MEAN, math.pi, 0.0)
-    cands = (np.array([NONE, MEAN, PACE]), np.array([0.0, 2.0, 3.0]), np.array([0.0, 0.0, 0.5]))
-
-    def job(steps: int, checkpoint: int | None = None) -> StagedPrediction:
-        kwargs = {"lead_time": 0.5, "lead_steps": 5, "fan_out": lambda t, la_: cands, "step": 0.05}
-        done = StagedPrediction(theta, lam, model, a, assisted, BLENDER, lead, steps=steps, checkpoint=checkpoint, **kwargs)
-        while not done.done:
-            done.advance(6)
-        return done
-
-    both, short, long = job(40, 15), job(15), job(40)
-    np.testing.assert_allclose(both.checkpoint_scores, short.scores, rtol=0, atol=1e-12)
-    np.testing.assert_array_equal(both.scores, long.scores)
-    assert np.ptp(both.checkpoint_scores - both.scores) > 1e-4  # the two horizons rank differently enough to matter
-    with pytest.raises(RuntimeError, match="no checkpoint"):
-        _ = long.checkpoint_scores
-    with pytest.raises(ValueError, match="checkpoint must be within 1..steps=40, got 41"):
-        job(40, 41)
-
-
-def test_confirm_keeps_an_alteration_only_if_both_horizons_predict_its_gain():
-    """The choice is made on ``horizon``'s scores; ``confirm``'s must also beat doing nothing by ``margin``."""
-    block = GuardedPacingMotion(4, 0, horizon=10.0, confirm=20.0, commit=0)
-    kinds = np.array([NONE, MEAN, PACE])
-    ten = np.array([0.50, 0.51, 0.56])  # pacing gains 0.06 over 10 s
-    assert block._committed(kinds, (ten, None)) == 2
-    assert block._committed(kinds, (ten, np.array([0.50, 0.52, 0.519]))) == 0  # 0.019 over 20 s: below the margin
-    assert block._committed(kinds, (ten, np.array([0.50, 0.60, 0.521]))) == 2  # 20 s favours it by 0.021: kept
-    # the veto does not pick the 20 s favourite instead: it only stops what 10 s chose
-    assert block._committed(kinds, (np.array([0.50, 0.51, 0.505]), np.array([0.50, 0.60, 0.40]))) == 0
-    # a pace in progress goes on unvetoed; a switch to another that 20 s does not confirm keeps the one in progress
-    gates = len(block.gates)
-    kinds = np.array([NONE] + [MEAN] * gates + [PACE, PACE])
-    block.mode, block.value = PACE, 3.0
-    going_on, other = 1 + gates, 2 + gates
-    ten, twenty = np.full(len(kinds), 0.50), np.full(len(kinds), 0.50)
-    ten[going_on], ten[other] = 0.53, 0.60
-    twenty[other] = 0.51
-    assert block._committed(kinds, (ten, twenty)) == going_on
-    ten[other] = 0.50
-    assert block._committed(kinds, (ten, twenty)) == going_on  # 20 s does not favour it either: not vetoed
-    ten[going_on], ten[other] = 0.51, 0.60  # 10 s no longer favours it by the margin, its rival is vetoed
-    assert block._committed(kinds, (ten, twenty)) == 0
-
-
-def test_a_guard_with_confirm_scores_both_horizons_from_one_rollout():
-    """With ``confirm=20`` the fan-out runs 20 s (400 steps of 50 ms) and the 10 s scores are its checkpoint."""
-    group = TABLE2[1]
-    block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, confirm=20.0)
-    record: list[int] = []
-    _closed_loop(group, block, 1.49, record)  # ticks 0-149: the first decision, started at tick 100, is ready
-    job = block.job
-    assert job.steps == 400 and job.checkpoint == 200 and job.done
-    assert max(record) <= block.max_evaluations
-    with pytest.raises(ValueError, match="confirm must be"):
-        GuardedPacingMotion(3, 0, confirm=0.0)
-
-
-@pytest.mark.parametrize(("end", "steps"), [(3.0, 30), (1.0, 200), (None, 200)])
+@pytest.mark.parametrize(("end", "steps"), [(3.0, 30), (1.0, 400), (None, 400)])
 def test_end_scores_a_prediction_only_up_to_the_runs_end(end, steps):
     """The first decision (started at tick 100, its lead ending at 1.5 s) is scored over the 1.5 s left before
-    ``end`` = 3 s (30 steps of 50 ms); past ``end``, or without it, over the whole 10 s horizon."""
+    ``end`` = 3 s (30 steps of 50 ms); past ``end``, or without it, over the whole 20 s horizon."""
     group = TABLE2[1]
     block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=end)
     _closed_loop(group, block, 1.49, [])
     assert block.job.done and block.job.steps == steps
-    with_confirm = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=3.0, confirm=20.0)
-    _closed_loop(group, with_confirm, 1.49, [])
-    job = with_confirm.job
-    assert job.steps == 30 and job.checkpoint is None  # both horizons cut to the same 1.5 s
-    np.testing.assert_array_equal(with_confirm._horizon_scores(job)[0], with_confirm._horizon_scores(job)[1])
     with pytest.raises(ValueError, match="end must be"):
         GuardedPacingMotion(3, 0, end=-1.0)
 
@@ -196,8 +130,8 @@ def test_the_first_decision_comes_after_half_a_period_then_decisions_come_every_
     """Until a check has passed, periods are ``first_period`` ticks: trusted at tick 100, the first decision is checked
     and applied at 150 (not 200), and later ones every 100 ticks; before 150 the participant is left unaltered."""
     group = TABLE2[1]
-    block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph)
-    assert block.first_period == 50 and block.decide_every == 100
+    block = MOTIONS["guard"](group)  # as pop_sync builds it: predictions stop at the group's 10 s
+    assert block.first_period == 50 and block.decide_every == 100 and block.end == group.duration
     starts, record = _start_ticks(block), []
     trace = _closed_loop(group, block, 4.0, record)
     assert starts == [100, 150, 250, 350]
@@ -228,11 +162,10 @@ def test_a_committed_pace_is_kept_for_commit_periods():
     """With ``commit``, a pace once chosen is continued (same frequency, θ_ref = anchor + ω t without a jump) for
     ``commit`` periods; without it, the same group's pace is stopped half-way (validation group 429)."""
     group = random_groups(430, "validation", 0)[429]
-    plain = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, commit=0)
+    plain = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, horizon=10.0, commit=0)
     _closed_loop(group, plain, group.duration, [])
     assert plain.choices[:4] == [PACE] * 4 and plain.choices[4] == NONE
-    kept = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph)
-    assert kept.commit == 10  # the default
+    kept = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, horizon=10.0, commit=10)
     values: list[float] = []
     finish = kept._finish
 

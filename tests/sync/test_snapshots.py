@@ -8,7 +8,7 @@ import pytest
 from cogblocks.data.groups import TABLE2
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.sim import Simulator
-from cogblocks.sync import GuardedPacingMotion, MPCMotion
+from cogblocks.sync import MPCMotion
 
 PROBES = {"ref": "l2.theta_ref"}
 
@@ -58,26 +58,6 @@ def test_a_closed_loop_continues_bit_for_bit_from_a_snapshot(tmp_path, name, tic
     _load(other, snapshot)
     _assert_same_run(first, other.run(n_steps=300))
     assert np.ptp(first["ref"]) > 0.0
-
-
-@pytest.mark.parametrize("ticks", [110, 140], ids=["before-checkpoint", "after-checkpoint"])
-def test_a_guard_with_confirm_continues_bit_for_bit_either_side_of_its_checkpoint(ticks):
-    """``confirm`` adds a checkpoint total to the decision in progress: a snapshot on either side of it continues."""
-
-    def diagram():
-        group = TABLE2[2]
-        return pop_sync(2, motion=GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, confirm=20.0))
-
-    sim = Simulator(diagram(), probes=PROBES)
-    sim.run(n_steps=ticks)
-    job = sim.compiled.blocks["l2.motion"].job
-    assert (job.done_steps - job.lead_steps > job.checkpoint) == (ticks == 140) and not job.done
-    snapshot = sim.state_dict()
-    first = sim.run(n_steps=300)
-    other = Simulator(diagram(), probes=PROBES)
-    other.run(n_steps=7)
-    other.load_state_dict(snapshot)
-    _assert_same_run(first, other.run(n_steps=300))
 
 
 @pytest.mark.parametrize("name", ["guard", "dqn"])
