@@ -272,6 +272,7 @@ CASES = [
     case("GuardedPacingMotion", "fallback", "pace", "one of"),
     case("GuardedPacingMotion", "first_period", 0, "integer >= 1"),
     case("GuardedPacingMotion", "commit", -1, "integer >= 0"),
+    case("GuardedPacingMotion", "end", 0.0, "(0.0, inf)"),
     case("ShieldedMotion", "motion", 5, "MotionComputer", given="int"),
     case("ShieldedMotion", "adjacency", [[1.0]], "shape (3, 3)", given="(1, 1)"),
     case("ShieldedMotion", "blender", 5, "BlenderParams", given="int"),
