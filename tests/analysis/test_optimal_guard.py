@@ -105,8 +105,8 @@ def replay(setup, **extra):
 
 
 def test_guard_options_leave_the_human_emission_alone(setup):
-    plain, plain_trace = replay(setup)
-    guarded, trace = replay(setup, guard_rest=True, guard_margin=19.0)
+    plain, plain_trace = replay(setup, emit="human", guard_rest=False)
+    guarded, trace = replay(setup, emit="human", guard_rest=True, guard_margin=19.0)
     assert (guarded.guard_rest, guarded.guard_margin) == (True, 19.0)
     np.testing.assert_array_equal(trace["v_a"], plain_trace["v_a"])
     assert not plain.guarded_ticks and not guarded.guarded_ticks

@@ -9,7 +9,7 @@ import torch
 from cogblocks.amplification import NoCorrection
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
-from cogblocks.diagrams.amplification_setup import amplification_judges
+from cogblocks.diagrams.amplification_setup import OPTIMISED, amplification_judges
 from cogblocks.experiments.amplification_fresh import FRESH_SEED, fresh_setup, main, real_shares, run_fresh
 from cogblocks.sim import Simulator
 
@@ -125,4 +125,4 @@ def test_command_passes_the_ninth_round_options(monkeypatch):
     assert main(["--json"]) == 0
     given, default = (call["optimised"] for call in calls)
     assert (given["emit"], given["guard_rest"], given["guard_margin"]) == ("tail", True, 2.5)
-    assert (default["guard_rest"], default["guard_margin"]) == (False, 0.0)  # the blender's defaults
+    assert (default["guard_rest"], default["guard_margin"]) == (OPTIMISED["guard_rest"], 0.0)  # the shipped setting
