@@ -19,6 +19,10 @@ plus a correction ``u``; it is checked on ``b + u``. Two ways to emit it:
   last commit is the checked one, and the terminal gap takes the prediction's error over that tail only
   (docs/pop-amplification.md, "Eighth round"). The state in force says which (``as_planned``).
 
+The guard's options (:func:`guard_settings`, docs/pop-amplification.md, "Ninth round"): ``guard_rest``, a human
+measured at rest is predicted to stay at rest (as a decision predicts it), so that the guard sees the gap the plan's
+movement opens after the human has stopped; ``guard_margin``, the gap is bounded at ``δ_pos − guard_margin``.
+
 Emitting the plan, a committed plan is also **re-anchored** (:func:`rebased`): its held correction is
 taken from the sample actually emitted before it, not the one its problem assumed (they differ after the
 pass-through or the guard), so that the emitted velocity stays continuous; its check is made after that.
@@ -33,8 +37,18 @@ import numpy as np
 
 from cogblocks.amplification.blending import blend
 from cogblocks.amplification.plan import equivalent_c
+from cogblocks.sim.params import finite_number, flag
 
-__all__ = ["EMISSIONS", "as_planned", "emit_tick", "final_gap", "guarded_velocity", "planned_movement", "rebased"]
+__all__ = [
+    "EMISSIONS",
+    "as_planned",
+    "emit_tick",
+    "final_gap",
+    "guard_settings",
+    "guarded_velocity",
+    "planned_movement",
+    "rebased",
+]
 
 #: The values of ``OptimalBlender(emit=...)``.
 EMISSIONS = ("human", "plan", "tail")
@@ -45,18 +59,31 @@ def as_planned(state: dict[str, Any], emit: str) -> bool:
     return emit == "plan" or (emit == "tail" and bool(state.get("as_planned", 0)))
 
 
+def guard_settings(block: Any, guard_rest: bool, guard_margin: float) -> tuple[bool, float, float, float | None]:
+    """The options ``guard_rest`` and ``guard_margin`` checked, then the guard's bound (mm) and rest speed.
+
+    ``block`` has ``delta_pos`` and ``rest_speed``; ``guard_margin`` must lie in ``[0, delta_pos)``. The rest
+    speed is None without ``guard_rest`` (the guard follows the prediction throughout). Raises ValueError, naming
+    ``block``, for a value out of range or not of its type.
+    """
+    rest = flag(block, "guard_rest", guard_rest)
+    margin = finite_number(block, "guard_margin", guard_margin, low=0.0, high=block.delta_pos, high_open=True)
+    return rest, margin, block.delta_pos - margin, block.rest_speed if rest else None
+
+
 def emit_tick(
     t: int, v_h: np.ndarray, v_r: np.ndarray, v_a: np.ndarray, state: dict[str, Any], altered: np.ndarray,
-    human: np.ndarray, dt: float, delta_pos: float, emit: str,
+    human: np.ndarray, dt: float, emit: str, bound: float, rest_speed: float | None = None,
 ) -> tuple[float, bool]:  # fmt: skip
     """Write tick ``t``'s velocity under ``state`` (the block's state in force) into ``v_a``, before any ``v_u``.
 
-    The plan (``v_h + u``, or the guarded ``b + u`` when :func:`as_planned`; zero from its end on), else the
-    table's blend, else ``v_h``. Returns the diagnostic ``c`` and whether the guard changed the velocity.
+    The plan (``v_h + u``, or the guarded ``b + u`` when :func:`as_planned`, the guard's ``bound`` and
+    ``rest_speed`` those of :func:`guarded_velocity`; zero from its end on), else the table's blend, else ``v_h``.
+    Returns the diagnostic ``c`` and whether the guard changed the velocity.
     """
     if state["end"] > 0 and as_planned(state, emit) and t < state["end"]:
         v_a[...], guarded = guarded_velocity(
-            t, v_h, altered, human, state["plan"], state["basis"], state["end"], dt, delta_pos
+            t, v_h, altered, human, state["plan"], state["basis"], state["end"], dt, bound, rest_speed
         )
         return equivalent_c(v_a, v_h, v_r), guarded
     if state["end"] > 0:
@@ -86,10 +113,10 @@ def planned_movement(
 
 def final_gap(
     t: int, v_a: np.ndarray, v_h: np.ndarray, altered: np.ndarray, human: np.ndarray,
-    plan: np.ndarray, basis: np.ndarray, end: int, dt: float,
+    plan: np.ndarray, basis: np.ndarray, end: int, dt: float, at_rest: bool = False,
 ) -> np.ndarray:  # fmt: skip
     """The final position gap ``p_a − p_h`` (mm) if tick ``t`` emits ``v_a`` and then the plan is emitted
-    while the human follows its basis.
+    while the human follows its basis (``at_rest``: stays at rest).
 
     Parameters
     ----------
@@ -103,26 +130,33 @@ def final_gap(
         The planned length: the block emits zero from it on, while the human (as predicted) may still move.
     dt : float
         Sampling step in seconds.
+    at_rest : bool
+        The human does not move after ``t``, while the plan (``basis + plan``) is emitted until ``end``.
     """
-    rest = plan[t + 1 : end].sum(axis=0) - basis[max(end, t + 1) :].sum(axis=0)
+    if at_rest:
+        rest = (plan[t + 1 : end] + basis[t + 1 : end]).sum(axis=0)
+    else:  # the human follows the basis: only the correction differs before the end
+        rest = plan[t + 1 : end].sum(axis=0) - basis[max(end, t + 1) :].sum(axis=0)
     return dt * ((altered[:t] - human[:t]).sum(axis=0) + v_a - v_h + rest)
 
 
 def guarded_velocity(
     t: int, v_h: np.ndarray, altered: np.ndarray, human: np.ndarray,
-    plan: np.ndarray, basis: np.ndarray, end: int, dt: float, delta: float,
+    plan: np.ndarray, basis: np.ndarray, end: int, dt: float, delta: float, rest_speed: float | None = None,
 ) -> tuple[np.ndarray, bool]:  # fmt: skip
     """This tick's velocity under ``emit="plan"`` (``t < end``) and whether the guard corrected it.
 
     ``b + u`` if its :func:`final_gap` ``G`` is within ``delta`` (mm); otherwise ``b + u − e / (dt·(end − t))``
     with ``e = G·(1 − delta/‖G‖)`` the excess: spread over the ticks left, so that, the human following
-    ``b``, the final gap is ``delta`` after the last one. A non-finite ``v_h`` gives ``v_h + u``
-    (non-finite: the block's bad data policy).
+    ``b``, the final gap is ``delta`` after the last one. With ``rest_speed``, ``G`` assumes a human whose
+    ``‖v_h‖`` is at or below it stays at rest (the human then staying so, the final gap is ``delta`` too).
+    A non-finite ``v_h`` gives ``v_h + u`` (non-finite: the block's bad data policy).
     """
     planned = basis[t] + plan[t]
     if not np.all(np.isfinite(v_h)):
         return v_h + plan[t], True
-    gap = final_gap(t, planned, v_h, altered, human, plan, basis, end, dt)
+    at_rest = rest_speed is not None and float(np.linalg.norm(v_h)) <= rest_speed
+    gap = final_gap(t, planned, v_h, altered, human, plan, basis, end, dt, at_rest)
     size = float(np.linalg.norm(gap))
     if size <= delta:
         return planned, False

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from cogblocks.amplification.blending import add_blending_ports
-from cogblocks.amplification.emission import EMISSIONS, emit_tick, planned_movement, rebased
+from cogblocks.amplification.emission import EMISSIONS, emit_tick, guard_settings, planned_movement, rebased
 from cogblocks.amplification.encoder import (
     CLIP_HIGH,
     N_POINTS,
@@ -118,8 +118,7 @@ class OptimalBlender(Block):
     e_des : {0, 1}
         1: encode fear (ε̂ > 0.9); 0: remove it (ε̂ < 0.1).
     margin : float
-        Planned ε̂ beyond the clipping threshold (0.05: the plan asks for ε̂ ≥ 0.95, or ≤ 0.05),
-        against the prediction's error.
+        Planned ε̂ beyond the clipping threshold, against the prediction's error (0.05: ε̂ ≥ 0.95, or ≤ 0.05).
     removal_margin : float, optional
         The margin when removing fear (``e_des = 0``); by default ``margin``.
     delta_pos : float
@@ -166,6 +165,10 @@ class OptimalBlender(Block):
         What a plan emits: ``v_h + u`` (default) or the plan itself, its prediction plus ``u``, so that the
         emitted movement is the checked one, under a terminal guard; ``"tail"``: only a plan committed within
         ``knot_spacing`` samples of its end emits itself (:mod:`~cogblocks.amplification.emission`).
+    guard_rest : bool
+        Emitting a plan: the guard predicts a human measured at or below ``rest_speed`` to stay at rest (False).
+    guard_margin : float
+        mm of δ_pos the guard keeps in reserve (0: it bounds the final gap at δ_pos).
     prediction_hold : int
         Samples over which a prediction keeps, fading, its error on the last measured sample
         (:func:`~cogblocks.amplification.plan.held_prediction`; 0: none).
@@ -176,15 +179,15 @@ class OptimalBlender(Block):
 
     Notes
     -----
-    The solve runs in the output phase of the decision's tick (it needs the projector's new
-    decision) and is committed in the update phase. :attr:`results` is a record of the decisions
-    since the last reset, not block state: restoring a snapshot does not rewind it, nor a solve in
-    flight (``solve_ticks`` > 1), which :meth:`reset` drops.
+    The solve runs in the output phase of the decision's tick (it needs the projector's new decision) and is
+    committed in the update phase. :attr:`results` is a record of the decisions since the last reset, not block
+    state: restoring a snapshot does not rewind it, nor a solve in flight (``solve_ticks`` > 1), which :meth:`reset`
+    drops.
 
     Bad data policy: a non-finite ``v_h`` or ``v_u`` gives a non-finite ``v_a`` on that tick, as in
-    :class:`VelocityBlender` (``v_r`` only counts while the table's ``c`` < 1 is in force); for later
-    plans a non-finite or implausible sample (beyond 1 km/s,
-    :func:`~cogblocks.blocks.samples.plausible`) is recorded as zero, so the solver never sees it.
+    :class:`VelocityBlender` (``v_r`` only counts while the table's ``c`` < 1 is in force); for later plans a
+    non-finite or implausible sample (beyond 1 km/s, :func:`~cogblocks.blocks.samples.plausible`) is recorded as
+    zero, so the solver never sees it.
     """
 
     def __init__(
@@ -211,6 +214,8 @@ class OptimalBlender(Block):
         track_past: bool = False,
         removal_margin: float | None = None,
         prediction_hold: int = 0,
+        guard_rest: bool = False,
+        guard_margin: float = 0.0,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -238,6 +243,7 @@ class OptimalBlender(Block):
         self.solver = one_of(self, "solver", solver, ("sqpmethod", "ipopt", "linearised"))
         self.sharpness = finite_number(self, "sharpness", sharpness, low=0.0, low_open=True)
         self.rest_speed = finite_number(self, "rest_speed", rest_speed, low=0.0)
+        self.guard_rest, self.guard_margin, *self._guard = guard_settings(self, guard_rest, guard_margin)
         self.kinematics = self._stack.kinematics
         if self.kinematics and self.solver != "linearised":
             raise ValueError(
@@ -257,10 +263,7 @@ class OptimalBlender(Block):
         if self.track_past and self.solver != "linearised":
             raise ValueError(f"OptimalBlender: track_past needs solver='linearised', got solver={self.solver!r}")
         self._delta = self.delta_pos - self.terminal_margin
-        self.library = library
-        self.networks = networks
-        self.network = networks[0]
-        self.table = table
+        self.library, self.networks, self.network, self.table = library, networks, networks[0], table
         self._key = self._stack.key
         self._sign = 1.0 if self.e_des == 1 else -1.0
         stack = self._stack
@@ -298,11 +301,8 @@ class OptimalBlender(Block):
 
     def reset(self) -> None:
         super().reset()
-        self.results = []
-        self.tick_ms = []
-        self.guarded_ticks = []
-        self._pending = None
-        self._job = None
+        self.results, self.tick_ms, self.guarded_ticks = [], [], []
+        self._pending = self._job = None
 
     @property
     def solve_ms(self) -> np.ndarray:
@@ -321,7 +321,7 @@ class OptimalBlender(Block):
                 self.tick_ms.append((time.thread_time() - started) * 1e3)
         state = {**self._in_force(), **(self._pending or {})}
         signals = (self.v_h.value, self.v_r.value, self.v_a.value, state, self.altered, self.human)
-        self.c.value[...], guarded = emit_tick(t, *signals, self.dt, self.delta_pos, self.emit)
+        self.c.value[...], guarded = emit_tick(t, *signals, self.dt, self.emit, *self._guard)
         self.guarded_ticks += [t] * guarded
         self.v_a.value[...] += self.v_u.value
 

@@ -42,7 +42,8 @@ __all__ = [
 #: until the seventh round) and 40 iterations, plans for
 #: ε̂ ≥ 0.999 encoding fear and, since the eighth round, ε̂ ≤ 0.00001 removing it (0.001 before), and a penalty
 #: (weight ``realism``) on the altered movement's distance from the subspace of the desired class's ``components``
-#: leading principal directions.
+#: leading principal directions. Since the ninth round the last plan is emitted as planned (``emit="tail"``), under
+#: a terminal guard that predicts a human at rest to stay at rest (``guard_rest``).
 OPTIMISED = {
     "solver": "linearised",
     "time_limit_ms": 4.0,
@@ -51,6 +52,8 @@ OPTIMISED = {
     "realism": 3000.0,
     "margin": 0.099,
     "removal_margin": 0.09999,
+    "emit": "tail",
+    "guard_rest": True,
     "components": 12,
 }
 

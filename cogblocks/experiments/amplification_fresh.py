@@ -6,6 +6,7 @@ Usage::
         [--variants blend blend_rl optimised] [--json]
         [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
         [--solve-ticks N] [--realism R] [--components C] [--emit E] [--removal-margin M] [--prediction-hold S]
+        [--guard-rest 0|1] [--guard-margin G]
     python -m cogblocks.experiments.amplification_fresh --library-seed 3000 --real
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
@@ -17,9 +18,10 @@ subspace), in both directions; ``--share`` replays a seeded, stratified share of
 (``ReachLibrary.split(share, 0)``'s second part, as large as the held-out part for 0.3). Prints the rows
 of :func:`~cogblocks.diagrams.amplification.run_amplification` (``e_des = 1`` at the top level,
 ``e_des = 0`` under ``"e_des_0"``). ``--profile-members``, ``--kinematic-members`` and ``--kinematic-weights``
-replace the constrained networks, ``--solve-ticks``, ``--realism``, ``--components``, ``--emit``, ``--removal-margin``
-and ``--prediction-hold`` the optimised blender's settings (as ``amplification_inner``'s), to try a setting on a
-*validation* library (a seed declared as such before it is looked at); without them the chain is the shipped one.
+replace the constrained networks, ``--solve-ticks``, ``--realism``, ``--components``, ``--emit``, ``--removal-margin``,
+``--prediction-hold``, ``--guard-rest`` and ``--guard-margin`` the optimised blender's settings (as
+``amplification_inner``'s), to try a setting on a *validation* library (a seed declared as such before it is looked
+at); without them the chain is the shipped one.
 ``--real`` prints instead what the shipped judges decide on the library's *real* movements
 (:func:`real_shares`): how often the ensemble judge calls a real movement of ``e_des`` so, the scale of its
 share on the altered ones.
@@ -158,14 +160,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--emit", default=OPTIMISED.get("emit", "human"), choices=EMISSIONS)
     parser.add_argument("--removal-margin", type=float, default=OPTIMISED.get("removal_margin"))
     parser.add_argument("--prediction-hold", type=int, default=OPTIMISED.get("prediction_hold", 0))
+    parser.add_argument("--guard-rest", type=int, choices=(0, 1), default=int(OPTIMISED.get("guard_rest", False)))
+    parser.add_argument("--guard-margin", type=float, default=OPTIMISED.get("guard_margin", 0.0))
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     if args.real:
         print(json.dumps(real_shares(args.library_seed)))
         return 0
-    names = ("solve_ticks", "realism", "components", "emit", "removal_margin", "prediction_hold")
-    optimised = {name: getattr(args, name) for name in names}
+    names = ("solve_ticks", "realism", "components", "emit", "removal_margin", "prediction_hold", "guard_margin")
+    optimised = {name: getattr(args, name) for name in names} | {"guard_rest": bool(args.guard_rest)}
     given = {"profile": args.profile_members, "kinematic": args.kinematic_members}
     members = {name: count for name, count in given.items() if count is not None}
     rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des,

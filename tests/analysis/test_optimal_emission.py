@@ -118,7 +118,8 @@ def test_emitted_movement_is_the_last_plan(e_des):
 def test_option_off_is_the_old_emission():
     setup = amplification_setup(None, 1)
     networks = blender_networks(setup.encoder, profile=2, kinematic=0)
-    blender = OptimalBlender(setup.movements, networks, setup.table, subspace=setup.subspace, **options(iterations=10))
+    settings = options(iterations=10, emit="human")
+    blender = OptimalBlender(setup.movements, networks, setup.table, subspace=setup.subspace, **settings)
     assert "basis" not in blender.state_dict() and blender.emit == "human"
     trace = replay(setup, blender, int(setup.humans[0]))
     # after the last commit the plan's correction is added to the measured human, nothing else

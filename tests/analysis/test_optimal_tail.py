@@ -50,7 +50,7 @@ def commits(blender):
 @pytest.mark.parametrize("rank", [0, 1])
 def test_tail_emits_the_last_plan_as_it_was_checked(setup, networks, rank):
     human = int(setup.humans[rank])
-    plain, plain_trace = replay(setup, networks, human)
+    plain, plain_trace = replay(setup, networks, human, emit="human")
     tail, trace = replay(setup, networks, human, emit="tail")
     index, ticks = commits(tail)
     t0, end, last = ticks[-1], tail.end, tail.results[index[-1]]

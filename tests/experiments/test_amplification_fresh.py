@@ -9,7 +9,7 @@ import torch
 from cogblocks.amplification import NoCorrection
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
-from cogblocks.diagrams.amplification_setup import amplification_judges
+from cogblocks.diagrams.amplification_setup import OPTIMISED, amplification_judges
 from cogblocks.experiments.amplification_fresh import FRESH_SEED, fresh_setup, main, real_shares, run_fresh
 from cogblocks.sim import Simulator
 
@@ -114,3 +114,15 @@ def test_command_passes_the_eighth_round_options(monkeypatch, capsys):
     monkeypatch.setattr(fresh, "real_shares", lambda seed: {"library_seed": seed, "fear": {}})
     assert main(["--library-seed", "3", "--real"]) == 0 and len(calls) == 1
     assert json.loads(capsys.readouterr().out.splitlines()[-1]) == {"library_seed": 3, "fear": {}}
+
+
+def test_command_passes_the_ninth_round_options(monkeypatch):
+    import cogblocks.experiments.amplification_fresh as fresh
+
+    calls = []
+    monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
+    assert main(["--json", "--emit", "tail", "--guard-rest", "1", "--guard-margin", "2.5"]) == 0
+    assert main(["--json"]) == 0
+    given, default = (call["optimised"] for call in calls)
+    assert (given["emit"], given["guard_rest"], given["guard_margin"]) == ("tail", True, 2.5)
+    assert (default["guard_rest"], default["guard_margin"]) == (OPTIMISED["guard_rest"], 0.0)  # the shipped setting
