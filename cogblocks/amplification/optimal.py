@@ -39,7 +39,7 @@ from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, solve_deci
 from cogblocks.amplification.linearised import LinearisedSolver, one_blas_thread
 from cogblocks.amplification.members import StackedNetworks
 from cogblocks.amplification.past import follow_past
-from cogblocks.amplification.plan import PlanResult, held_prediction, plan_problem, sigmoid
+from cogblocks.amplification.plan import PlanResult, library_prediction, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
 from cogblocks.blocks.samples import plausible
@@ -169,9 +169,6 @@ class OptimalBlender(Block):
         Emitting a plan: the guard predicts a human measured at or below ``rest_speed`` to stay at rest (False).
     guard_margin : float
         mm of δ_pos the guard keeps in reserve (0: it bounds the final gap at δ_pos).
-    prediction_hold : int
-        Samples over which a prediction keeps, fading, its error on the last measured sample
-        (:func:`~cogblocks.amplification.plan.held_prediction`; 0: none).
     track_past : bool
         With ``solve_ticks`` > 1 (linearised only): every tick of a spread solve puts the past emitted so far
         into its problem in place of the prediction, the iterations going on from there
@@ -213,7 +210,6 @@ class OptimalBlender(Block):
         emit: str = "human",
         track_past: bool = False,
         removal_margin: float | None = None,
-        prediction_hold: int = 0,
         guard_rest: bool = False,
         guard_margin: float = 0.0,
         period: float | None = None,
@@ -232,7 +228,6 @@ class OptimalBlender(Block):
         self.margin = finite_number(self, "margin", margin, low=0.0, high=1.0 - CLIP_HIGH, high_open=True)
         self.removal_margin = margin if removal_margin is None else removal_margin
         finite_number(self, "removal_margin", self.removal_margin, low=0.0, high=1.0 - CLIP_HIGH, high_open=True)
-        self.prediction_hold = positive_int(self, "prediction_hold", prediction_hold, minimum=0)
         self.delta_pos = finite_number(self, "delta_pos", delta_pos, low=0.0, low_open=True)
         self.terminal_margin = finite_number(
             self, "terminal_margin", terminal_margin, low=0.0, high=self.delta_pos, high_open=True
@@ -381,7 +376,7 @@ class OptimalBlender(Block):
         lib, n = self.library, len(self.human)
         t0 = min(t + self.solve_ticks - 1, n - 1)
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
-        held = held_prediction(lib.velocity[nearest], self.human, t, self.prediction_hold, moving=not at_rest)
+        held = library_prediction(lib.velocity[nearest], self.human, t, moving=not at_rest)
         anchor = held[t0 - 1]  # emitting a plan, the prediction at t0 − 1
         # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
         # is enough: the altered movement may end before the human's, having covered the same distance sooner

@@ -28,7 +28,7 @@ from cogblocks.amplification.encoder_casadi import _U_SCALE
 from cogblocks.amplification.kinematics import PlanKinematics
 from cogblocks.amplification.subspace import MovementSubspace
 
-__all__ = ["PlanResult", "equivalent_c", "held_prediction", "knot_basis", "plan_problem", "sigmoid", "with_past"]
+__all__ = ["PlanResult", "equivalent_c", "knot_basis", "library_prediction", "plan_problem", "sigmoid", "with_past"]
 
 
 @dataclass(frozen=True)
@@ -86,22 +86,13 @@ def knot_basis(t: int, length: int, spacing: int) -> tuple[np.ndarray, np.ndarra
     return knots, phi0, phi, axis_map
 
 
-def held_prediction(velocity: np.ndarray, human: np.ndarray, t: int, hold: int, moving: bool = True) -> np.ndarray:
-    """The human's prediction at a decision at tick ``t``: η_i's ``velocity`` from ``t − 1`` on, shape (T, 3),
-    zero before ``t − 1``, plus its error on the last measured sample ``human[t − 1]``, weighted by
-    ``max(0, 1 − (s − t + 1)/hold)`` at sample ``s`` (1 at ``t − 1``, 0 from ``t − 1 + hold`` on; ``hold`` 0: none).
-    Zero throughout unless the human is ``moving`` (then ``t ≥ 1``).
-
-    The offset correction of offset-free predictive control: the prediction's error persists for a while, so the
-    movement a plan is checked on (the prediction plus the correction) nears the one emitted (``v_h`` plus it).
+def library_prediction(velocity: np.ndarray, human: np.ndarray, t: int, moving: bool = True) -> np.ndarray:
+    """The human's prediction at a decision at tick ``t``: η_i's ``velocity`` from ``t − 1`` on, shape (T, 3), zero
+    before ``t − 1``; zero throughout unless the human is ``moving`` (then ``t ≥ 1``): a human at rest stays at rest.
     """
     predicted = np.zeros_like(human, dtype=np.float64)
-    if not moving:
-        return predicted
-    predicted[t - 1 :] = velocity[t - 1 : len(human)]
-    if hold > 0:
-        weight = np.maximum(1.0 - np.arange(len(human) - t + 1) / hold, 0.0)
-        predicted[t - 1 :] += weight[:, None] * (human[t - 1] - velocity[t - 1])
+    if moving:
+        predicted[t - 1 :] = velocity[t - 1 : len(human)]
     return predicted
 
 

@@ -5,7 +5,7 @@ Usage::
     python -m cogblocks.experiments.amplification_fresh --library-seed 2027 [--share 0.3] [--limit N]
         [--variants blend blend_rl optimised] [--json]
         [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
-        [--solve-ticks N] [--realism R] [--components C] [--emit E] [--removal-margin M] [--prediction-hold S]
+        [--solve-ticks N] [--realism R] [--components C] [--emit E] [--removal-margin M]
         [--guard-rest 0|1] [--guard-margin G]
     python -m cogblocks.experiments.amplification_fresh --library-seed 3000 --real
 
@@ -19,7 +19,7 @@ subspace), in both directions; ``--share`` replays a seeded, stratified share of
 of :func:`~cogblocks.diagrams.amplification.run_amplification` (``e_des = 1`` at the top level,
 ``e_des = 0`` under ``"e_des_0"``). ``--profile-members``, ``--kinematic-members`` and ``--kinematic-weights``
 replace the constrained networks, ``--solve-ticks``, ``--realism``, ``--components``, ``--emit``, ``--removal-margin``,
-``--prediction-hold``, ``--guard-rest`` and ``--guard-margin`` the optimised blender's settings (as
+``--guard-rest`` and ``--guard-margin`` the optimised blender's settings (as
 ``amplification_inner``'s), to try a setting on a *validation* library (a seed declared as such before it is looked
 at); without them the chain is the shipped one.
 ``--real`` prints instead what the shipped judges decide on the library's *real* movements
@@ -159,7 +159,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--components", type=int, default=OPTIMISED["components"])
     parser.add_argument("--emit", default=OPTIMISED.get("emit", "human"), choices=EMISSIONS)
     parser.add_argument("--removal-margin", type=float, default=OPTIMISED.get("removal_margin"))
-    parser.add_argument("--prediction-hold", type=int, default=OPTIMISED.get("prediction_hold", 0))
     parser.add_argument("--guard-rest", type=int, choices=(0, 1), default=int(OPTIMISED.get("guard_rest", False)))
     parser.add_argument("--guard-margin", type=float, default=OPTIMISED.get("guard_margin", 0.0))
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
@@ -168,7 +167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.real:
         print(json.dumps(real_shares(args.library_seed)))
         return 0
-    names = ("solve_ticks", "realism", "components", "emit", "removal_margin", "prediction_hold", "guard_margin")
+    names = ("solve_ticks", "realism", "components", "emit", "removal_margin", "guard_margin")
     optimised = {name: getattr(args, name) for name in names} | {"guard_rest": bool(args.guard_rest)}
     given = {"profile": args.profile_members, "kinematic": args.kinematic_members}
     members = {name: count for name, count in given.items() if count is not None}

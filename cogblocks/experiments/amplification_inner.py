@@ -5,7 +5,7 @@ Usage::
     python -m cogblocks.experiments.amplification_inner --e-des 1 --limit 30 [--components 12]
         [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised] [--solve-ticks 1]
         [--iterations 10] [--profile-members 2] [--kinematic-members 0] [--emit human|plan|tail] [--track-past 0|1]
-        [--removal-margin M] [--prediction-hold S] [--guard-rest 0|1] [--guard-margin G] [--kinematic-weights FILE ...]
+        [--removal-margin M] [--guard-rest 0|1] [--guard-margin G] [--kinematic-weights FILE ...]
 
 The training part of the shipped encoder's split is split again, seeded and stratified
 (``ReachLibrary.split(0.3, 100)``); w̃ and the realism subspace are computed on the inner training
@@ -97,7 +97,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--emit", default=defaults.get("emit", "human"), choices=EMISSIONS)
     parser.add_argument("--removal-margin", type=float, default=defaults.get("removal_margin"),
                         help="margin for e_des 0 (default --margin)")  # fmt: skip
-    parser.add_argument("--prediction-hold", type=int, default=defaults.get("prediction_hold", 0))
     parser.add_argument("--guard-rest", type=int, choices=(0, 1), default=int(defaults.get("guard_rest", False)))
     parser.add_argument("--guard-margin", type=float, default=defaults.get("guard_margin", 0.0))
     parser.add_argument(
@@ -125,8 +124,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms,
                "solve_ticks": args.solve_ticks, "iterations": args.iterations, "emit": args.emit,
                "track_past": bool(args.track_past), "removal_margin": args.removal_margin,
-               "prediction_hold": args.prediction_hold, "guard_rest": bool(args.guard_rest),
-               "guard_margin": args.guard_margin}  # fmt: skip
+               "guard_rest": bool(args.guard_rest), "guard_margin": args.guard_margin}  # fmt: skip
     members = {"profile": args.profile_members, "kinematic": args.kinematic_members}
     row = evaluate(args.e_des, args.limit, args.components, members, args.kinematic_weights, solver=args.solver,
                    **options)  # fmt: skip

@@ -1,5 +1,5 @@
 """The eighth round's options of the optimised blender: the last plan emitted as planned (``emit="tail"``), a
-removal margin and the prediction's held error (``prediction_hold``)."""
+removal margin and the prediction decisions are made on."""
 
 import dataclasses
 import math
@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from cogblocks.amplification import OptimalBlender
-from cogblocks.amplification.plan import held_prediction
+from cogblocks.amplification.plan import library_prediction
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
 from cogblocks.experiments.amplification_gap import RecordingBlender
@@ -97,20 +97,14 @@ def test_earlier_plans_emit_the_human(setup, networks):
 
 
 @pytest.mark.parametrize("seed", range(4))
-@pytest.mark.parametrize("hold", [0, 1, 7, 20])
-def test_held_prediction(seed, hold):
+def test_library_prediction(seed):
     rng = np.random.default_rng(seed)
     velocity, human = rng.normal(scale=90.0, size=(2, 60, 3))
     t = int(rng.integers(1, 50))
-    got = held_prediction(velocity, human, t, hold)
     expected = np.zeros((60, 3))
-    for s in range(t - 1, 60):  # the weight falls by 1/hold per sample from 1 at t − 1
-        weight = max(0.0, 1.0 - (s - (t - 1)) / hold) if hold else 0.0
-        expected[s] = velocity[s] + weight * (human[t - 1] - velocity[t - 1])
-    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
-    if hold:  # at the last measured sample the prediction is the measurement
-        np.testing.assert_allclose(got[t - 1], human[t - 1], rtol=0, atol=1e-12)
-    np.testing.assert_array_equal(held_prediction(velocity, human, t, hold, moving=False), 0.0)  # a human at rest
+    expected[t - 1 :] = velocity[t - 1 :]  # the library movement from the last measured sample on
+    np.testing.assert_array_equal(library_prediction(velocity, human, t), expected)
+    np.testing.assert_array_equal(library_prediction(velocity, human, t, moving=False), 0.0)  # a human at rest
 
 
 class PredictionRecorder(RecordingBlender):
@@ -125,24 +119,19 @@ class PredictionRecorder(RecordingBlender):
         return super()._finish(t, new)
 
 
-@pytest.mark.parametrize("hold", [0, 20])
-def test_decisions_plan_on_the_held_prediction(setup, networks, hold):
+def test_decisions_plan_on_the_library_prediction(setup, networks):
     blender = PredictionRecorder(
-        setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace,
-        **options(prediction_hold=hold),
-    )  # fmt: skip
+        setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace, **options()
+    )
     trace = replay_movement(setup, int(setup.humans[0]), blender, probes={"nearest": "l2.nearest"})
     v_h = np.asarray(trace["v_h"], dtype=np.float64)
-    offsets = []
     for decision, predicted in blender.predictions:
         b = setup.movements.velocity[int(trace["nearest"][decision])]
         expected = np.zeros_like(b)
-        if np.linalg.norm(v_h[decision - 1]) > blender.rest_speed:  # the library movement and its fading error
-            weight = np.maximum(1.0 - np.arange(len(b) - decision) / hold - 1.0 / hold, 0.0) if hold else 0.0
-            expected[decision:] = b[decision:] + np.multiply.outer(weight, v_h[decision - 1] - b[decision - 1])
+        if np.linalg.norm(v_h[decision - 1]) > blender.rest_speed:  # the library movement; a human at rest stays so
+            expected[decision:] = b[decision:]
         np.testing.assert_allclose(predicted, expected, rtol=0, atol=1e-9)
-        offsets.append(np.abs(expected - np.where(expected != 0.0, b, 0.0)).max())
-    assert len(offsets) >= 3 and (max(offsets) > 1.0) == (hold > 0)
+    assert len(blender.predictions) >= 3
     # and the check of the last committed plan is the emitted past, then that prediction plus the plan
     index, ticks = commits(blender)
     t0, end = ticks[-1], blender.end
@@ -159,8 +148,6 @@ def test_removal_margin_sets_the_removal_target_only(setup, networks):
     assert OptimalBlender(setup.movements, networks, margin=0.02, **others).removal_margin == 0.02
     with pytest.raises(ValueError, match="removal_margin"):
         OptimalBlender(setup.movements, networks, removal_margin=0.1, **others)
-    with pytest.raises(ValueError, match="prediction_hold"):
-        OptimalBlender(setup.movements, networks, prediction_hold=-1, **others)
     with pytest.raises(ValueError, match="emit"):
         OptimalBlender(setup.movements, networks, emit="last", **others)
 

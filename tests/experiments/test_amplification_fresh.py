@@ -106,11 +106,10 @@ def test_command_passes_the_eighth_round_options(monkeypatch, capsys):
 
     calls = []
     monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
-    argv = ["--json", "--emit", "tail", "--removal-margin", "0.09999", "--prediction-hold", "20"]
+    argv = ["--json", "--emit", "tail", "--removal-margin", "0.09999"]
     assert main(argv) == 0
-    assert {k: calls[0]["optimised"][k] for k in ("emit", "removal_margin", "prediction_hold")} == {
-        "emit": "tail", "removal_margin": 0.09999, "prediction_hold": 20,
-    }  # fmt: skip
+    given = {"emit": "tail", "removal_margin": 0.09999}
+    assert {k: calls[0]["optimised"][k] for k in given} == given
     monkeypatch.setattr(fresh, "real_shares", lambda seed: {"library_seed": seed, "fear": {}})
     assert main(["--library-seed", "3", "--real"]) == 0 and len(calls) == 1
     assert json.loads(capsys.readouterr().out.splitlines()[-1]) == {"library_seed": 3, "fear": {}}

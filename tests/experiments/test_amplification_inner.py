@@ -55,10 +55,10 @@ def test_command_takes_the_eighth_round_options(capsys, monkeypatch):
 
     calls = []
     monkeypatch.setattr(inner, "run_amplification", lambda *a, **kw: (calls.append(kw), {"optimised": {"n": 0}})[1])
-    argv = ["--e-des", "0", "--limit", "1", "--emit", "tail", "--removal-margin", "0.09999", "--prediction-hold", "20"]
+    argv = ["--e-des", "0", "--limit", "1", "--emit", "tail", "--removal-margin", "0.09999"]
     assert main(argv) == 0
     printed = json.loads(capsys.readouterr().out)
-    given = {"emit": "tail", "removal_margin": 0.09999, "prediction_hold": 20}
+    given = {"emit": "tail", "removal_margin": 0.09999}
     assert {k: printed[k] for k in given} == given
     assert {k: calls[0]["optimised"][k] for k in given} == given  # what the blender is built with
 

@@ -422,7 +422,6 @@ CASES = [
     case("OptimalBlender", "emit", "predicted", "one of ['human', 'plan', 'tail']"),
     case("OptimalBlender", "track_past", 1, "True or False"),
     case("OptimalBlender", "removal_margin", 0.5, "[0.0, 0.09"),
-    case("OptimalBlender", "prediction_hold", -1, "integer >= 0"),
     case("OptimalBlender", "guard_rest", 1, "True or False"),
     case("OptimalBlender", "guard_margin", 20.0, "[0.0, 20.0)"),
 ]
