@@ -81,6 +81,10 @@ class GuardedPacingMotion(PacingMotion):
         the mean r up to its end. Predictions are then scored only up to it (at least one Euler step), since
         what a plan gains after the end does not count; a pace that costs now and pays later is otherwise
         chosen just before the end. Past ``end`` the horizon applies whole again.
+    early : float, optional
+        If given (s, at most the horizon), an alteration is chosen only if its predicted mean r over the first
+        ``early`` s also beats doing nothing (by 0, not by ``margin``): a plan whose predicted gain comes only late in
+        the horizon pays only if it is held that long, and the block re-decides every period (docs/pop-sync.md).
 
     Notes
     -----
@@ -106,6 +110,7 @@ class GuardedPacingMotion(PacingMotion):
         first_period: int | None = None,
         commit: int = COMMIT,
         end: float | None = None,
+        early: float | None = None,
         **pacing: Any,
     ) -> None:
         super().__init__(n, assisted, **{"margin": MARGIN, "horizon": HORIZON} | pacing)
@@ -115,6 +120,7 @@ class GuardedPacingMotion(PacingMotion):
         self.first_period = positive_int(self, "first_period", default_first if first_period is None else first_period)
         self.commit = positive_int(self, "commit", commit, minimum=0)
         self.end = None if end is None else finite_number(self, "end", end, low=0.0, low_open=True)
+        self.early = None if early is None else finite_number(self, "early", early, low=0.0, low_open=True)
         self.add_state("error", math.inf)  # the last check's error (inf: none passed yet)
         self.add_state("passed", False)  # a check has passed since the last reset
         self.add_state("next_due", 0)  # the tick the next decision is due at
@@ -227,6 +233,7 @@ class GuardedPacingMotion(PacingMotion):
             fan_out=self._fan_out,
             step=step,
             steps=min(self.max_steps, max(1, round(horizon / step))),
+            checkpoint=None if self.early is None else max(1, round(self.early / step)),
         )
 
     def _fan_out(self, theta: np.ndarray, _lam: float) -> tuple[np.ndarray, ...]:
@@ -252,6 +259,9 @@ class GuardedPacingMotion(PacingMotion):
             self.passed = self.passed or self.error <= self.tolerance
         kinds, values, _ = job.candidates
         scores = job.scores
+        if self.early is not None:  # a candidate whose gain comes only late is not eligible (doing nothing always is)
+            early = job.early_scores
+            scores = np.where((early >= early[0]) | (kinds == NONE), scores, -math.inf)
         if self.error > self.tolerance:
             mode, value = self.fallback, math.pi
             self.held = self.commit  # no commitment to the fallback

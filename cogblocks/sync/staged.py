@@ -31,7 +31,7 @@ __all__ = ["PROGRESS", "StagedPrediction"]
 Candidates = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 #: Names of what :meth:`StagedPrediction.progress` returns: everything an advance changes.
-PROGRESS = ("theta", "lam", "kinds", "values", "anchors", "total", "lead_theta", "done_steps")
+PROGRESS = ("theta", "lam", "kinds", "values", "anchors", "total", "early", "lead_theta", "done_steps")
 
 
 class StagedPrediction:
@@ -59,6 +59,9 @@ class StagedPrediction:
         Euler step (s) of the fan-out.
     steps : int
         Euler steps of the fan-out; the scores are the mean r over them.
+    checkpoint : int, optional
+        Also keep every candidate's mean r over the fan-out's first ``checkpoint`` steps (at most ``steps``):
+        :attr:`early_scores`.
 
     Attributes
     ----------
@@ -81,6 +84,7 @@ class StagedPrediction:
         fan_out: Callable[[np.ndarray, float], Candidates],
         step: float,
         steps: int,
+        checkpoint: int | None = None,
     ) -> None:
         self.model, self.adjacency, self.assisted, self.blender = model, adjacency, assisted, blender
         self.theta = np.asarray(theta, dtype=float)[None, :].copy()
@@ -88,10 +92,12 @@ class StagedPrediction:
         self.rows: Candidates = tuple(np.array([float(v)]) for v in lead)
         self.lead_step, self.lead_steps = lead_time / lead_steps, lead_steps
         self.fan_out, self.step, self.steps = fan_out, step, steps
+        self.checkpoint = None if checkpoint is None else max(1, min(int(checkpoint), steps))
         self.done_steps = 0  # of lead_steps + steps
         self.lead_theta: np.ndarray | None = None  # the predicted phases at the lead's end
         self.candidates: Candidates | None = None
         self.total = np.zeros(0)
+        self.early = np.zeros(0)  # the totals at the checkpoint, once the fan-out has passed it
         self.evaluations = 0
 
     @property
@@ -110,6 +116,15 @@ class StagedPrediction:
             raise RuntimeError("StagedPrediction: the scores are known only once every step is done")
         return self.total / self.steps
 
+    @property
+    def early_scores(self) -> np.ndarray:
+        """The predicted mean r of every candidate over the fan-out's first ``checkpoint`` steps (once :attr:`done`)."""
+        if self.checkpoint is None:
+            raise RuntimeError("StagedPrediction: no checkpoint was asked for")
+        if not self.done:
+            raise RuntimeError("StagedPrediction: the scores are known only once every step is done")
+        return self.early / self.checkpoint
+
     def advance(self, budget: int) -> None:
         """Run at most ``budget`` Euler steps (stopping when done)."""
         self.evaluations = 0
@@ -125,6 +140,8 @@ class StagedPrediction:
             self.evaluations += len(self.lam)
             if not lead:
                 self.total += r
+                if s + 1 == self.checkpoint:
+                    self.early = self.total.copy()
             self.done_steps += 1
             if self.done_steps == self.lead_steps:
                 self._fan_out()
@@ -133,8 +150,8 @@ class StagedPrediction:
         """What the prediction has computed so far (no copy), by the names of :data:`PROGRESS`.
 
         ``theta`` (rows, N), ``lam``, ``kinds``, ``values``, ``anchors`` and ``total`` (rows,) are the rows being
-        predicted (the lead's one row, then the candidates), ``lead_theta`` (N,) the phases at the lead's end (NaN
-        before it), ``done_steps`` the Euler steps done.
+        predicted (the lead's one row, then the candidates), ``early`` the totals at the checkpoint (empty before
+        it), ``lead_theta`` (N,) the phases at the lead's end (NaN before it), ``done_steps`` the Euler steps done.
         """
         kinds, values, anchors = self.rows
         lead_theta = np.full(self.theta.shape[1], np.nan) if self.lead_theta is None else self.lead_theta
@@ -145,6 +162,7 @@ class StagedPrediction:
             "values": values,
             "anchors": anchors,
             "total": self.total,
+            "early": self.early,
             "lead_theta": lead_theta,
             "done_steps": self.done_steps,
         }
@@ -154,7 +172,8 @@ class StagedPrediction:
 
         The arrays are copied: the prediction then advances on its own, as the one it was taken from would.
         """
-        self.theta, self.lam, self.total = (np.array(progress[name], dtype=float) for name in ("theta", "lam", "total"))
+        names = ("theta", "lam", "total", "early")
+        self.theta, self.lam, self.total, self.early = (np.array(progress[name], dtype=float) for name in names)
         self.rows = tuple(np.array(progress[name], dtype=float) for name in ("kinds", "values", "anchors"))
         self.done_steps = int(progress["done_steps"])
         fanned_out = self.done_steps >= self.lead_steps
@@ -168,4 +187,4 @@ class StagedPrediction:
         self.theta = np.tile(self.lead_theta, (count, 1))
         self.lam = np.full(count, self.lam[0])
         self.rows = self.candidates
-        self.total = np.zeros(count)
+        self.total, self.early = np.zeros(count), np.zeros(0)
