@@ -17,7 +17,14 @@ from cogblocks.amplification.encoder import CLIP_HIGH, REST_SPEED, EncoderNet, r
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
-__all__ = ["SolutionTable", "default_cache_dir", "library_fingerprint", "solution_table"]
+__all__ = [
+    "SolutionTable",
+    "default_cache_dir",
+    "library_fingerprint",
+    "library_summary",
+    "same_library",
+    "solution_table",
+]
 
 GRID_POINTS = 50  # values of the blending coefficient, 0 and 1 included
 
@@ -28,6 +35,38 @@ def library_fingerprint(library: ReachLibrary) -> str:
     for array in (library.velocity, library.length, library.fear):
         digest.update(np.ascontiguousarray(array).tobytes())
     return digest.hexdigest()
+
+
+def library_summary(library: ReachLibrary) -> dict[str, list]:
+    """Per movement: its length, its label, and the sum and the sum of squares of its velocity samples.
+
+    What a set of weights was trained on, up to rounding: :func:`library_fingerprint` changes with the last bit of
+    any sample, which the generator's floating point does from one CPU or NumPy / SciPy build to another.
+    """
+    velocity = np.asarray(library.velocity, dtype=float).reshape(len(library.length), -1)
+    return {
+        "length": np.asarray(library.length).astype(int).tolist(),
+        "fear": np.asarray(library.fear).astype(bool).tolist(),
+        "velocity_sum": velocity.sum(axis=1).tolist(),
+        "velocity_squares": (velocity**2).sum(axis=1).tolist(),
+    }
+
+
+def same_library(summary: dict[str, list], library: ReachLibrary, rtol: float = 1e-9) -> bool:
+    """Whether ``library`` is the one ``summary`` (:func:`library_summary`) was taken of, to ``rtol`` of its scale.
+
+    Lengths and labels must be equal; the velocity sums may differ by ``rtol`` times the largest of them, far above
+    rounding (about 1e-13 of it) and far below any change of the generator.
+    """
+    here = library_summary(library)
+    if here["length"] != list(summary["length"]) or here["fear"] != list(summary["fear"]):
+        return False
+    for key in ("velocity_sum", "velocity_squares"):
+        want, got = np.asarray(summary[key], dtype=float), np.asarray(here[key], dtype=float)
+        scale = float(np.abs(want).max(initial=0.0))
+        if want.shape != got.shape or not np.allclose(got, want, rtol=0.0, atol=rtol * max(scale, 1.0)):
+            return False
+    return True
 
 
 # --- the restricted solution function w̃ --------------------------------------------------------

@@ -20,7 +20,7 @@ from cogblocks.amplification.judges import (
     KinematicJudge,
     load_ensemble,
 )
-from cogblocks.amplification.solution import library_fingerprint
+from cogblocks.amplification.solution import library_fingerprint, same_library
 from cogblocks.amplification.subspace import MovementSubspace, movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
@@ -131,6 +131,17 @@ class AmplificationSetup:
         return self.val[self.library.fear[self.val] != bool(self.e_des)]
 
 
+def _trained_on(meta: dict, library: ReachLibrary) -> bool:
+    """Whether the checkpoint's metadata ``meta`` says it was trained on ``library`` (or says nothing of it).
+
+    Bit for bit (``library_sha256``), or else to rounding (``library_summary``, where the checkpoint has one): the
+    generator's last bits differ between CPUs and NumPy / SciPy builds, its content does not.
+    """
+    if meta.get("library_sha256") in (None, library_fingerprint(library)):
+        return True
+    return "library_summary" in meta and same_library(meta["library_summary"], library)
+
+
 @lru_cache(maxsize=4)
 def amplification_setup(seed: int | None = None, e_des: int = 1) -> AmplificationSetup:
     """The shipped encoder, its library, a seeded 70/30 split and w̃ on the training part.
@@ -146,7 +157,7 @@ def amplification_setup(seed: int | None = None, e_des: int = 1) -> Amplificatio
     encoder = load_encoder()
     meta = encoder.checkpoint
     library = generate_reach_library(int(meta["library_seed"]))
-    if meta.get("library_sha256") not in (None, library_fingerprint(library)):
+    if not _trained_on(meta, library):
         warnings.warn(
             "the synthetic library differs from the one the shipped encoder was trained on (the generator "
             "changed): retrain with `python -m cogblocks.training.encoder --seed 0 --out "

@@ -35,7 +35,7 @@ from torch import nn
 
 from cogblocks.amplification import EncoderNet
 from cogblocks.amplification.encoder import FEAR, NO_FEAR, clip_decision
-from cogblocks.amplification.solution import library_fingerprint
+from cogblocks.amplification.solution import library_fingerprint, library_summary
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
@@ -265,6 +265,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         "dropout": config.dropout,
         "library_seed": config.library_seed,
         "library_sha256": library_fingerprint(library),
+        "library_summary": library_summary(library),
         "val_fraction": config.val_fraction,
         "split_seed": best.split_seed,
         "seed": args.seed,

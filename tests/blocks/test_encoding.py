@@ -1,5 +1,8 @@
 """PoP of Amplification: classifier, w̃, online projection, blending and position blocks."""
 
+import warnings
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -25,9 +28,11 @@ from cogblocks.amplification.encoder import (
     resampling_matrix,
 )
 from cogblocks.amplification.projector import PrefixProjection
+from cogblocks.amplification.solution import library_fingerprint, library_summary, same_library
 from cogblocks.blocks import Constant, Playback
 from cogblocks.data.features import classifier_inputs, resample_movement
 from cogblocks.data.reach import generate_reach_library
+from cogblocks.diagrams.amplification_setup import _trained_on, amplification_setup
 from cogblocks.sim import Diagram, Simulator
 from cogblocks.training.encoder import EncoderConfig, class_report, cross_validate, train_network
 
@@ -320,3 +325,32 @@ def test_shipped_encoder_loads():
     eps = net.predict(classifier_inputs(library.subset(val)))
     assert eps.shape == (len(val),) and ((eps >= 0) & (eps <= 1)).all()
     assert np.mean((eps > 0.5) == library.fear[val]) > 0.7
+
+
+def test_a_library_is_recognised_up_to_rounding_and_not_beyond(small):
+    """``same_library`` accepts the library its summary was taken of with every sample moved by a few ulps (another
+    CPU's or build's floating point), and refuses a changed label, length or movement; the exact fingerprint does not
+    survive the ulps."""
+    summary = library_summary(small)
+    rng = np.random.default_rng(0)
+    ulps = replace(small, velocity=small.velocity * (1.0 + rng.integers(-4, 5, small.velocity.shape) * 2.0**-52))
+    assert library_fingerprint(ulps) != library_fingerprint(small)
+    assert same_library(summary, small) and same_library(summary, ulps)
+    moved = small.velocity.copy()
+    moved[3, 10:20] *= 1.001  # a tenth of a percent of one movement's samples
+    assert not same_library(summary, replace(small, velocity=moved))
+    assert not same_library(summary, replace(small, fear=~small.fear))
+    assert not same_library(summary, replace(small, length=small.length + 1))
+
+
+def test_the_shipped_encoder_is_recognised_on_this_machines_library():
+    """Its checkpoint's summary matches the library generated here, so the setup gives no retraining warning; a
+    checkpoint with another fingerprint and no summary (an old or foreign one) still gets it."""
+    meta = load_encoder().checkpoint
+    library = generate_reach_library(meta["library_seed"])
+    assert same_library(meta["library_summary"], library)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        amplification_setup.__wrapped__(None, 1)
+    assert not _trained_on({"library_sha256": "0" * 64}, library)
+    assert _trained_on({"library_sha256": library_fingerprint(library)}, library) and _trained_on({}, library)
