@@ -36,7 +36,7 @@ from cogblocks.amplification.encoder import (
     resampling_matrix,
 )
 from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, solve_decision
-from cogblocks.amplification.linearised import LinearisedSolver, one_blas_thread
+from cogblocks.amplification.linearised import GRADIENTS, LinearisedSolver, one_blas_thread
 from cogblocks.amplification.members import StackedNetworks
 from cogblocks.amplification.past import follow_past
 from cogblocks.amplification.plan import PlanResult, library_prediction, plan_problem, sigmoid
@@ -131,26 +131,23 @@ class OptimalBlender(Block):
     knot_spacing : int
         Samples between knots (ΔT = 10).
     time_limit_ms : float
-        CPU-time limit (8 ms): so that the plans do not depend on the load of the machine.
-        sqpmethod and IPOPT: of one solve (sqpmethod: an iteration callback stops it before an
-        iteration that, taking as long as the previous one, would end past the limit; IPOPT:
-        ``max_cpu_time``, checked at the end of each iteration); building the problem and checking
-        the result come on top. linearised: of everything the block does for a decision in one
-        tick (building the problem, iterating, checking the outcome): no iteration starts that,
-        taking as long as the last one, would end past it (with the last check's time kept in
-        reserve on the tick that commits), except that a decision with no iteration yet runs one.
+        CPU-time limit (8 ms): so that the plans do not depend on the load of the machine. sqpmethod and
+        IPOPT: of one solve (sqpmethod: an iteration callback stops it before an iteration that, taking as long
+        as the previous one, would end past the limit; IPOPT: ``max_cpu_time``, checked after each iteration);
+        building the problem and checking the result come on top. linearised: of everything the block does for
+        a decision in one tick (building, iterating, checking): no iteration starts that, taking as long as the
+        last one, would end past it (the last check's time kept in reserve on the committing tick), except that
+        a decision with no iteration yet runs one.
     solve_ticks : int
-        Ticks one decision's solve may span (linearised only; 1). With more than one, the decision
-        at tick ``T`` plans from tick ``T + solve_ticks − 1`` on, the plan in force (or the table's
-        blend, or the pass-through) covering the ticks before it, and the solve resumes at every
-        tick until then, each within ``time_limit_ms``; the plan is committed at that tick.
+        Ticks one decision's solve may span (linearised only; 1). With more, the decision at tick ``T`` plans from
+        ``T + solve_ticks − 1`` on, the plan in force (or the table's blend, or the pass-through) covering the ticks
+        before, the solve resuming at every tick until then, each within ``time_limit_ms``; committed at that tick.
     iterations : int
         Most iterations of one linearised solve (10).
     solver : {"sqpmethod", "ipopt", "linearised"}
-        casadi's SQP with the ``qrqp`` QP solver (default), IPOPT (about 0.5 ms per iteration of
-        overhead at this size), or :class:`~cogblocks.amplification.linearised.LinearisedSolver`:
-        sequential QPs on the exact ReLU networks in NumPy (no Hessian; the first plan starts from
-        no correction; a run out of time keeps its best acceptable iterate).
+        casadi's SQP with ``qrqp`` (default), IPOPT (about 0.5 ms per iteration of overhead at this size), or
+        :class:`~cogblocks.amplification.linearised.LinearisedSolver`: sequential QPs on the exact ReLU networks in
+        NumPy (no Hessian; the first plan from no correction; a run out of time keeps its best acceptable iterate).
     sharpness : float
         β of the softplus that replaces ReLU inside casadi's solvers (10).
     rest_speed : float
@@ -173,6 +170,9 @@ class OptimalBlender(Block):
         With ``solve_ticks`` > 1 (linearised only): every tick of a spread solve puts the past emitted so far
         into its problem in place of the prediction, the iterations going on from there
         (:mod:`~cogblocks.amplification.past`).
+    gradient, predict_setup : str, bool
+        Linearised: how the members' gradients are taken, whether the prediction of an iteration's time counts the
+        solve's preparation (``"stacked"``, True: :class:`~cogblocks.amplification.linearised.LinearisedSolver`).
 
     Notes
     -----
@@ -212,6 +212,8 @@ class OptimalBlender(Block):
         removal_margin: float | None = None,
         guard_rest: bool = False,
         guard_margin: float = 0.0,
+        gradient: str = "stacked",
+        predict_setup: bool = True,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -253,6 +255,8 @@ class OptimalBlender(Block):
                 f"with solver={self.solver!r}"
             )
         self.iterations = positive_int(self, "iterations", iterations)
+        self.gradient = one_of(self, "gradient", gradient, GRADIENTS)
+        self.predict_setup = flag(self, "predict_setup", predict_setup)
         self.emit = one_of(self, "emit", emit, EMISSIONS)
         self.track_past = flag(self, "track_past", track_past)
         if self.track_past and self.solver != "linearised":
@@ -262,7 +266,8 @@ class OptimalBlender(Block):
         self._key = self._stack.key
         self._sign = 1.0 if self.e_des == 1 else -1.0
         stack = self._stack
-        self._linear = LinearisedSolver(stack.w1, stack.b1, stack.w2, stack.b2, self._sign)
+        self._linear = LinearisedSolver(stack.w1, stack.b1, stack.w2, stack.b2, self._sign, gradient=self.gradient,
+                                        predict_setup=self.predict_setup)  # fmt: skip
         margin = self.margin if self.e_des else self.removal_margin
         self._z_target = math.log((CLIP_HIGH + margin) / (1.0 - CLIP_HIGH - margin))
         self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)

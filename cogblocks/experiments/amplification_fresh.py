@@ -5,8 +5,8 @@ Usage::
     python -m cogblocks.experiments.amplification_fresh --library-seed 2027 [--share 0.3] [--limit N]
         [--variants blend blend_rl optimised] [--json]
         [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
-        [--solve-ticks N] [--realism R] [--components C] [--emit E] [--removal-margin M]
-        [--guard-rest 0|1] [--guard-margin G]
+        [--solve-ticks N] [--time-limit-ms T] [--realism R] [--components C] [--emit E] [--margin M]
+        [--removal-margin M] [--guard-rest 0|1] [--guard-margin G] [--gradient stacked|blocks] [--predict-setup 0|1]
     python -m cogblocks.experiments.amplification_fresh --library-seed 3000 --real
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
@@ -18,8 +18,9 @@ subspace), in both directions; ``--share`` replays a seeded, stratified share of
 (``ReachLibrary.split(share, 0)``'s second part, as large as the held-out part for 0.3). Prints the rows
 of :func:`~cogblocks.diagrams.amplification.run_amplification` (``e_des = 1`` at the top level,
 ``e_des = 0`` under ``"e_des_0"``). ``--profile-members``, ``--kinematic-members`` and ``--kinematic-weights``
-replace the constrained networks, ``--solve-ticks``, ``--realism``, ``--components``, ``--emit``, ``--removal-margin``,
-``--guard-rest`` and ``--guard-margin`` the optimised blender's settings (as
+replace the constrained networks, ``--solve-ticks``, ``--time-limit-ms``, ``--realism``, ``--components``,
+``--emit``, ``--margin``, ``--removal-margin``, ``--guard-rest``, ``--guard-margin``, ``--gradient`` and
+``--predict-setup`` the optimised blender's settings (as
 ``amplification_inner``'s), to try a setting on a *validation* library (a seed declared as such before it is looked
 at); without them the chain is the shipped one.
 ``--real`` prints instead what the shipped judges decide on the library's *real* movements
@@ -40,6 +41,7 @@ import torch
 
 from cogblocks.amplification.emission import EMISSIONS
 from cogblocks.amplification.encoder import FEAR, NO_FEAR
+from cogblocks.amplification.linearised import GRADIENTS
 from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 from cogblocks.diagrams.amplification import run_amplification
@@ -155,20 +157,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="ensemble checkpoints the kinematic networks are taken from, in order (default the shipped one)",
     )  # fmt: skip
     parser.add_argument("--solve-ticks", type=int, default=OPTIMISED["solve_ticks"])
+    parser.add_argument("--time-limit-ms", type=float, default=OPTIMISED["time_limit_ms"])
     parser.add_argument("--realism", type=float, default=OPTIMISED["realism"])
     parser.add_argument("--components", type=int, default=OPTIMISED["components"])
     parser.add_argument("--emit", default=OPTIMISED.get("emit", "human"), choices=EMISSIONS)
+    parser.add_argument("--margin", type=float, default=OPTIMISED["margin"])
     parser.add_argument("--removal-margin", type=float, default=OPTIMISED.get("removal_margin"))
     parser.add_argument("--guard-rest", type=int, choices=(0, 1), default=int(OPTIMISED.get("guard_rest", False)))
     parser.add_argument("--guard-margin", type=float, default=OPTIMISED.get("guard_margin", 0.0))
+    parser.add_argument("--gradient", default=OPTIMISED.get("gradient", "stacked"), choices=GRADIENTS)
+    parser.add_argument("--predict-setup", type=int, choices=(0, 1), default=int(OPTIMISED.get("predict_setup", True)))
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     if args.real:
         print(json.dumps(real_shares(args.library_seed)))
         return 0
-    names = ("solve_ticks", "realism", "components", "emit", "removal_margin", "guard_margin")
-    optimised = {name: getattr(args, name) for name in names} | {"guard_rest": bool(args.guard_rest)}
+    names = ("solve_ticks", "time_limit_ms", "realism", "components", "emit", "margin", "removal_margin")
+    names += ("guard_margin", "gradient")
+    flags = {"guard_rest": bool(args.guard_rest), "predict_setup": bool(args.predict_setup)}
+    optimised = {name: getattr(args, name) for name in names} | flags
     given = {"profile": args.profile_members, "kinematic": args.kinematic_members}
     members = {name: count for name, count in given.items() if count is not None}
     rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des,

@@ -6,6 +6,7 @@ Usage::
         [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised] [--solve-ticks 1]
         [--iterations 10] [--profile-members 2] [--kinematic-members 0] [--emit human|plan|tail] [--track-past 0|1]
         [--removal-margin M] [--guard-rest 0|1] [--guard-margin G] [--kinematic-weights FILE ...]
+        [--gradient stacked|blocks] [--predict-setup 0|1]
 
 The training part of the shipped encoder's split is split again, seeded and stratified
 (``ReachLibrary.split(0.3, 100)``); w̃ and the realism subspace are computed on the inner training
@@ -28,6 +29,7 @@ import torch
 
 from cogblocks.amplification import solution_table
 from cogblocks.amplification.emission import EMISSIONS
+from cogblocks.amplification.linearised import GRADIENTS
 from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.diagrams.amplification import run_amplification
 from cogblocks.diagrams.amplification_setup import (
@@ -99,6 +101,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="margin for e_des 0 (default --margin)")  # fmt: skip
     parser.add_argument("--guard-rest", type=int, choices=(0, 1), default=int(defaults.get("guard_rest", False)))
     parser.add_argument("--guard-margin", type=float, default=defaults.get("guard_margin", 0.0))
+    parser.add_argument("--gradient", default=defaults.get("gradient", "stacked"), choices=GRADIENTS)
+    parser.add_argument("--predict-setup", type=int, choices=(0, 1), default=int(defaults.get("predict_setup", True)))
     parser.add_argument(
         "--track-past", type=int, choices=(0, 1), default=int(defaults.get("track_past", False)),
         help="1: the spread solve follows the emitted past (OptimalBlender(track_past=True))",
@@ -124,7 +128,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     options = {"realism": args.realism, "margin": args.margin, "time_limit_ms": args.time_limit_ms,
                "solve_ticks": args.solve_ticks, "iterations": args.iterations, "emit": args.emit,
                "track_past": bool(args.track_past), "removal_margin": args.removal_margin,
-               "guard_rest": bool(args.guard_rest), "guard_margin": args.guard_margin}  # fmt: skip
+               "guard_rest": bool(args.guard_rest), "guard_margin": args.guard_margin, "gradient": args.gradient,
+               "predict_setup": bool(args.predict_setup)}  # fmt: skip
     members = {"profile": args.profile_members, "kinematic": args.kinematic_members}
     row = evaluate(args.e_des, args.limit, args.components, members, args.kinematic_weights, solver=args.solver,
                    **options)  # fmt: skip

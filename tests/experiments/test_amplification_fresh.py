@@ -125,3 +125,18 @@ def test_command_passes_the_ninth_round_options(monkeypatch):
     given, default = (call["optimised"] for call in calls)
     assert (given["emit"], given["guard_rest"], given["guard_margin"]) == ("tail", True, 2.5)
     assert (default["guard_rest"], default["guard_margin"]) == (OPTIMISED["guard_rest"], 0.0)  # the shipped setting
+
+
+def test_command_passes_the_tenth_round_options(monkeypatch):
+    import cogblocks.experiments.amplification_fresh as fresh
+
+    calls = []
+    monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
+    argv = ["--json", "--gradient", "blocks", "--predict-setup", "0", "--margin", "0.0999", "--time-limit-ms", "3.5"]
+    assert main(argv) == 0
+    assert main(["--json"]) == 0
+    given, default = (call["optimised"] for call in calls)
+    assert (given["gradient"], given["predict_setup"], given["margin"]) == ("blocks", False, 0.0999)
+    assert (given["time_limit_ms"], default["time_limit_ms"]) == (3.5, OPTIMISED["time_limit_ms"])
+    shipped = (OPTIMISED.get("gradient", "stacked"), OPTIMISED.get("predict_setup", True), OPTIMISED["margin"])
+    assert (default["gradient"], default["predict_setup"], default["margin"]) == shipped

@@ -73,3 +73,15 @@ def test_command_takes_the_ninth_round_options(capsys, monkeypatch):
     given = {"emit": "tail", "guard_rest": True, "guard_margin": 5.0}
     assert {k: printed[k] for k in given} == given
     assert {k: calls[0]["optimised"][k] for k in given} == given  # what the blender is built with
+
+
+def test_command_takes_the_tenth_round_options(capsys, monkeypatch):
+    import cogblocks.experiments.amplification_inner as inner
+
+    calls = []
+    monkeypatch.setattr(inner, "run_amplification", lambda *a, **kw: (calls.append(kw), {"optimised": {"n": 0}})[1])
+    assert main(["--e-des", "1", "--limit", "1", "--gradient", "blocks", "--predict-setup", "0"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    given = {"gradient": "blocks", "predict_setup": False}
+    assert {k: printed[k] for k in given} == given
+    assert {k: calls[0]["optimised"][k] for k in given} == given  # what the blender is built with

@@ -424,6 +424,8 @@ CASES = [
     case("OptimalBlender", "removal_margin", 0.5, "[0.0, 0.09"),
     case("OptimalBlender", "guard_rest", 1, "True or False"),
     case("OptimalBlender", "guard_margin", 20.0, "[0.0, 20.0)"),
+    case("OptimalBlender", "gradient", "dense", "one of ['stacked', 'blocks']"),
+    case("OptimalBlender", "predict_setup", 1, "True or False"),
 ]
 
 
