@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+from operator import mul
 from contextlib import AbstractContextManager
 from functools import cache
 from typing import Any
@@ -75,15 +76,16 @@ def box_qp(m: np.ndarray, b: np.ndarray, upper: np.ndarray, start: np.ndarray | 
         free = [i for i in range(r) if not held[i]]
         target = lam[:]
         if free:
-            rhs = [bb[i] - sum(mm[i][j] * lam[j] for j in range(r) if held[j]) for i in free]
+            fixed = [v if h else 0.0 for v, h in zip(lam, held, strict=True)]  # the free ones' terms add zeros
+            rhs = [bb[i] - sum(map(mul, mm[i], fixed)) for i in free]
             for i, v in zip(free, _solve([[mm[i][j] for j in free] for i in free], rhs), strict=True):
                 target[i] = v
         direction = [t - v for t, v in zip(target, lam, strict=True)]
-        if max(abs(d) for d in direction) <= tol * (1.0 + max(abs(v) for v in lam)):
+        if max(map(abs, direction)) <= tol * (1.0 + max(map(abs, lam))):
             best, leave = tol, -1
             for i in range(r):
                 if held[i]:
-                    grad = sum(mm[i][j] * lam[j] for j in range(r)) - bb[i]
+                    grad = sum(map(mul, mm[i], lam)) - bb[i]
                     want = -grad if lam[i] <= 0.0 else grad  # > 0: leaving its bound lowers the objective
                     if want > best:
                         best, leave = want, i
@@ -239,17 +241,20 @@ class LinearisedSolver:
     ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """The QP's minimiser ``H⁻¹(Gᵀλ/2 − q)`` from its dual, and the multipliers λ.
 
-        The rows after the members' are tried inactive first; :func:`box_qp` starts from ``start`` (the last
-        QP's multipliers, zero for rows it did not have): the same minimiser, in fewer active-set steps.
+        :func:`box_qp` starts from ``start`` (the last QP's multipliers, zero for rows it did not have): the same
+        minimiser, in fewer active-set steps. Unless one of them was active there, the rows after the members' are
+        tried inactive first (a smaller dual, often enough).
         """
         dual, linear = 0.5 * rows @ hg, rows @ hq + h
-        lam = np.zeros(len(h))
-        lam[:members] = box_qp(dual[:members, :members], linear[:members], upper[:members], start[:members])
-        step = hg @ lam / 2.0 - hq
-        if np.any(rows[members:] @ step < h[members:] - 1e-9):
-            lam = box_qp(dual, linear, upper, np.concatenate([lam[:members], start[members:]]))
+        if not np.any(start[members:] > 0.0):
+            lam = np.zeros(len(h))
+            lam[:members] = box_qp(dual[:members, :members], linear[:members], upper[:members], start[:members])
             step = hg @ lam / 2.0 - hq
-        return step, lam
+            if not np.any(rows[members:] @ step < h[members:] - 1e-9):
+                return step, lam
+            start = np.concatenate([lam[:members], start[members:]])
+        lam = box_qp(dual, linear, upper, start)
+        return hg @ lam / 2.0 - hq, lam
 
     def solve(
         self,
