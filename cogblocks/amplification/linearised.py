@@ -173,7 +173,15 @@ class LinearisedSolver:
         blocks = [slice(end - len(w), end) for end, w in zip(ends, w2, strict=True)]  # each member's hidden units
         for k, (rows, w) in enumerate(zip(blocks, w2, strict=True)):
             self.w2[k, rows] = w
-        self._own = [(rows, np.asarray(w, dtype=np.float64), w1[rows]) for rows, w in zip(blocks, w2, strict=True)]
+        # each member's own block of the first layer, padded with zero rows to the largest (a batched product);
+        # _gather picks each member's output weights times its units' activity, the padding's from a trailing zero
+        hidden = max(len(w) for w in w2)
+        self._own = np.zeros((len(w2), hidden, w1.shape[1]))
+        self._gather = np.full((len(w2), hidden), len(b1))
+        for k, rows in enumerate(blocks):
+            self._own[k, : rows.stop - rows.start] = w1[rows]
+            self._gather[k, : rows.stop - rows.start] = np.arange(rows.start, rows.stop)
+        self._weights = np.append(self.w2.sum(axis=0), 0.0)  # the output weight of every hidden unit (one member's)
         self.b2 = np.asarray(b2, dtype=np.float64)
         self.iteration = 0.0  # CPU seconds of the last iteration: the prediction of the next one's
 
@@ -193,7 +201,8 @@ class LinearisedSolver:
         if self.gradient == "stacked":
             return (self.w2 * active) @ self.w1
         # "blocks": member k's gradient from its own rows only; the stacked product multiplies the others' zeros
-        return np.stack([(w2 * active[rows]) @ w1 for rows, w2, w1 in self._own])
+        weighted = self._weights * np.append(active, False)
+        return np.matmul(weighted[self._gather][:, None, :], self._own)[:, 0]
 
     def _merit(
         self, p: dict[str, Any], w: np.ndarray, z_target: float, delta: float
