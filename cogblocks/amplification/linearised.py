@@ -154,17 +154,18 @@ class LinearisedSolver:
     proximal : float
         Weight of ``‖w − w_k‖²`` added to each QP relative to the cost's mean curvature: keeps a step
         near the region where the linearisation is exact.
-    gradient : {"stacked", "blocks"}
-        How the members' gradients are taken: one product of the block-diagonal output weights with the
-        stacked first layer, or each member's from its own block of it (the same values to rounding, about a
-        third of the time for seven members).
+    gradient : {"blocks", "stacked"}
+        How the members' gradients are taken: each member's from its own block of the stacked first layer (one
+        batched product), or one product of the block-diagonal output weights with the whole stacked layer, which
+        multiplies the other members' zeros (the same values to rounding, several times the time for seven members;
+        kept as the straightforward reference the tests compare with).
     predict_setup : bool
         Whether the prediction of the next iteration's CPU time (:meth:`LinearisedRun.run`) counts the solve's
         preparation (the factorisation and the first linearisation) that the first iteration of a run carries.
     """
 
     def __init__(self, w1: np.ndarray, b1: np.ndarray, w2: list[np.ndarray], b2: np.ndarray, sign: float,
-                 proximal: float = 0.1, gradient: str = "stacked", predict_setup: bool = True) -> None:  # fmt: skip
+                 proximal: float = 0.1, gradient: str = "blocks", predict_setup: bool = True) -> None:  # fmt: skip
         self.w1, self.b1, self.sign, self.proximal = w1, b1, sign, proximal
         self.gradient = one_of(self, "gradient", gradient, GRADIENTS)
         self.predict_setup = flag(self, "predict_setup", predict_setup)
