@@ -268,6 +268,7 @@ CASES = [
     case("PacingMotion", "min_excitation", -1.0, "[0.0, inf)"),
     case("GuardedPacingMotion", "n", 1, "integer >= 2"),
     case("GuardedPacingMotion", "assisted", 5, "[0, 2]"),
+    case("GuardedPacingMotion", "early", 0.0, "(0.0, inf)"),
     case("GuardedPacingMotion", "tolerance", -0.1, "[0.0, inf)"),
     case("GuardedPacingMotion", "fallback", "pace", "one of"),
     case("GuardedPacingMotion", "first_period", 0, "integer >= 1"),
