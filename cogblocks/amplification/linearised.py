@@ -20,9 +20,11 @@ from functools import cache
 from typing import Any
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg import cho_factor
+from scipy.linalg.lapack import dpotrs
 from threadpoolctl import ThreadpoolController
 
+from cogblocks.amplification.boxqp import box_qp
 from cogblocks.sim.params import flag, one_of
 
 __all__ = ["GRADIENTS", "LinearisedRun", "LinearisedSolver", "box_qp", "network_input", "one_blas_thread"]
@@ -50,83 +52,21 @@ def one_blas_thread() -> AbstractContextManager:
     return _blas().limit(limits=1)
 
 
-def box_qp(m: np.ndarray, b: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """The minimiser of ``½ λᵀ M λ − bᵀ λ`` over ``0 ≤ λ ≤ upper`` (M symmetric positive semidefinite, few variables).
-
-    A primal active-set method on the bounds: from ``λ = 0``, solve for the free variables with the
-    others at their bounds; step to that point or to the first bound in the way (which then holds),
-    and free the bound variable whose gradient most wants to leave its bound, until none does. Exact
-    in finitely many steps; for the 2–5 variables here, a few small solves. ``upper`` may hold ``inf``.
-    """
-    r = len(b)
-    ridge = 1e-12 * max(float(np.trace(m)), 1e-300)  # a semidefinite M: a nearly least-norm minimiser
-    mm = [[float(m[i, j]) + (ridge if i == j else 0.0) for j in range(r)] for i in range(r)]
-    bb, ub = [float(v) for v in b], [float(v) for v in upper]
-    lam, held = [0.0] * r, [True] * r  # pure Python: for so few variables NumPy's call overhead dominates
-    tol = 1e-10 * (1.0 + max(abs(v) for v in bb))
-    for _ in range(8 * r + 8):
-        free = [i for i in range(r) if not held[i]]
-        target = lam[:]
-        if free:
-            rhs = [bb[i] - sum(mm[i][j] * lam[j] for j in range(r) if held[j]) for i in free]
-            for i, v in zip(free, _solve([[mm[i][j] for j in free] for i in free], rhs), strict=True):
-                target[i] = v
-        direction = [t - v for t, v in zip(target, lam, strict=True)]
-        if max(abs(d) for d in direction) <= tol * (1.0 + max(abs(v) for v in lam)):
-            best, leave = tol, -1
-            for i in range(r):
-                if held[i]:
-                    grad = sum(mm[i][j] * lam[j] for j in range(r)) - bb[i]
-                    want = -grad if lam[i] <= 0.0 else grad  # > 0: leaving its bound lowers the objective
-                    if want > best:
-                        best, leave = want, i
-            if leave < 0:
-                break
-            held[leave] = False
-            continue
-        step, block = 1.0, -1
-        for i in free:
-            d = direction[i]
-            limit = -lam[i] / d if d < 0 else (ub[i] - lam[i]) / d if d > 0 else math.inf
-            if limit < step:
-                step, block = limit, i
-        lam = [min(max(v + step * d, 0.0), u) for v, d, u in zip(lam, direction, ub, strict=True)]
-        if block >= 0:
-            held[block] = True
-    return np.array(lam)
-
-
-def network_input(p: dict[str, Any], w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The networks' input at plan variables ``w`` and its Jacobian in ``w``.
+def network_input(p: dict[str, Any], w: np.ndarray, jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """The networks' input at plan variables ``w`` and its Jacobian in ``w`` (None unless ``jacobian``).
 
     ``x0 + A w`` (Jacobian ``A`` itself); with ``p["kinematics"]``
     (:class:`~cogblocks.amplification.kinematics.PlanKinematics`), followed by the plan's exact kinematic
     features, whose (sub)gradient rows follow ``A``'s: the solver re-linearises at every iteration, so a
-    Jacobian exact only near ``w`` is all it needs.
+    Jacobian exact only near ``w`` is all it needs. The input is the same with or without ``jacobian``.
     """
     profile = p["x0"] + p["A"] @ w
     kinematics = p.get("kinematics")
     if kinematics is None:
-        return profile, p["A"]
-    features, jacobian = kinematics(w)
-    return np.r_[profile, features], np.vstack([p["A"], jacobian])
-
-
-def _solve(a: list[list[float]], y: list[float]) -> list[float]:
-    """``a x = y`` for a small dense system, Gaussian elimination with partial pivoting (in place)."""
-    n = len(y)
-    for k in range(n):
-        pivot = max(range(k, n), key=lambda i: abs(a[i][k]))
-        a[k], a[pivot], y[k], y[pivot] = a[pivot], a[k], y[pivot], y[k]
-        for i in range(k + 1, n):
-            f = a[i][k] / a[k][k]
-            for j in range(k, n):
-                a[i][j] -= f * a[k][j]
-            y[i] -= f * y[k]
-    x = [0.0] * n
-    for k in reversed(range(n)):
-        x[k] = (y[k] - sum(a[k][j] * x[j] for j in range(k + 1, n))) / a[k][k]
-    return x
+        return profile, p["A"] if jacobian else None
+    features, rows = kinematics(w, jacobian=jacobian)
+    x = np.concatenate([profile, features])
+    return x, np.concatenate([p["A"], rows]) if jacobian else None
 
 
 class LinearisedSolver:
@@ -144,82 +84,117 @@ class LinearisedSolver:
     proximal : float
         Weight of ``‖w − w_k‖²`` added to each QP relative to the cost's mean curvature: keeps a step
         near the region where the linearisation is exact.
-    gradient : {"stacked", "blocks"}
-        How the members' gradients are taken: one product of the block-diagonal output weights with the
-        stacked first layer, or each member's from its own block of it (the same values to rounding, about a
-        third of the time for seven members).
+    gradient : {"blocks", "stacked"}
+        How the members' gradients are taken: each member's from its own block of the stacked first layer (one
+        batched product), or one product of the block-diagonal output weights with the whole stacked layer, which
+        multiplies the other members' zeros (the same values to rounding, several times the time for seven members;
+        kept as the straightforward reference the tests compare with).
     predict_setup : bool
         Whether the prediction of the next iteration's CPU time (:meth:`LinearisedRun.run`) counts the solve's
         preparation (the factorisation and the first linearisation) that the first iteration of a run carries.
     """
 
     def __init__(self, w1: np.ndarray, b1: np.ndarray, w2: list[np.ndarray], b2: np.ndarray, sign: float,
-                 proximal: float = 0.1, gradient: str = "stacked", predict_setup: bool = True) -> None:  # fmt: skip
+                 proximal: float = 0.1, gradient: str = "blocks", predict_setup: bool = True) -> None:  # fmt: skip
         self.w1, self.b1, self.sign, self.proximal = w1, b1, sign, proximal
         self.gradient = one_of(self, "gradient", gradient, GRADIENTS)
         self.predict_setup = flag(self, "predict_setup", predict_setup)
         self.w2 = np.zeros((len(w2), len(b1)))
         ends = np.cumsum([len(w) for w in w2])
-        self._blocks = [slice(end - len(w), end) for end, w in zip(ends, w2, strict=True)]  # each member's hidden units
-        for k, (rows, w) in enumerate(zip(self._blocks, w2, strict=True)):
+        blocks = [slice(end - len(w), end) for end, w in zip(ends, w2, strict=True)]  # each member's hidden units
+        for k, (rows, w) in enumerate(zip(blocks, w2, strict=True)):
             self.w2[k, rows] = w
+        # each member's own block of the first layer, padded with zero rows to the largest (a batched product);
+        # _gather picks each member's output weights times its units' activity, the padding's from a trailing zero
+        hidden = max(len(w) for w in w2)
+        self._own = np.zeros((len(w2), hidden, w1.shape[1]))
+        self._gather = np.full((len(w2), hidden), len(b1))
+        for k, rows in enumerate(blocks):
+            self._own[k, : rows.stop - rows.start] = w1[rows]
+            self._gather[k, : rows.stop - rows.start] = np.arange(rows.start, rows.stop)
+        self._weights = np.append(self.w2.sum(axis=0), 0.0)  # the output weight of every hidden unit (one member's)
         self.b2 = np.asarray(b2, dtype=np.float64)
         self.iteration = 0.0  # CPU seconds of the last iteration: the prediction of the next one's
 
-    def logits(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every member's logit at input ``x`` and its gradient (members, inputs)."""
+    def logits(self, x: np.ndarray, gradient: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """Every member's logit at input ``x`` and its gradient (members, inputs; None unless ``gradient``)."""
+        logits, active = self._forward(x)
+        return logits, self._gradients(active) if gradient else None
+
+    def _forward(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every member's logit at input ``x`` and which hidden units are active there (all the gradient needs)."""
         pre = self.w1 @ x + self.b1
         active = pre > 0.0
-        logits = self.w2 @ np.where(active, pre, 0.0) + self.b2
-        if self.gradient == "stacked":
-            return logits, (self.w2 * active) @ self.w1
-        # "blocks": member k's gradient from its own rows only; the stacked product multiplies the others' zeros
-        weighted = self.w2 * active
-        return logits, np.stack([weighted[k, rows] @ self.w1[rows] for k, rows in enumerate(self._blocks)])
+        return self.w2 @ np.where(active, pre, 0.0) + self.b2, active
 
-    def _merit(self, p: dict[str, Any], w: np.ndarray, z_target: float, delta: float) -> tuple[float, tuple]:
+    def _gradients(self, active: np.ndarray) -> np.ndarray:
+        """The members' gradients in the input with the hidden units ``active`` (see ``gradient``)."""
+        if self.gradient == "stacked":
+            return (self.w2 * active) @ self.w1
+        # "blocks": member k's gradient from its own rows only; the stacked product multiplies the others' zeros
+        weighted = self._weights * np.append(active, False)
+        return np.matmul(weighted[self._gather][:, None, :], self._own)[:, 0]
+
+    def _merit(
+        self, p: dict[str, Any], w: np.ndarray, z_target: float, delta: float
+    ) -> tuple[float, np.ndarray, np.ndarray]:
         """The exact ℓ1 merit of ``w``: cost plus ρ per logit unit short of ``z_target`` and per mm beyond ``delta``.
 
-        Also returns the members' logits and gradients at ``w`` (:meth:`logits`) and the Jacobian of the
-        networks' input in ``w`` (:func:`network_input`), for the next iteration.
+        Also returns the members' logits at ``w`` and their active hidden units (:meth:`_forward`), from which
+        :meth:`_linearise` takes the gradients if ``w`` is kept: the line search rejects most trial points.
         """
-        x, jacobian = network_input(p, w)
-        linear = (*self.logits(x), jacobian)
-        excess = max(float(np.linalg.norm(p["g0"] + p["C"] @ w)) - delta, 0.0)
+        x, _ = network_input(p, w, jacobian=False)
+        z, active = self._forward(x)
+        gap = p["g0"] + p["C"] @ w
+        excess = max(math.sqrt(float(gap @ gap)) - delta, 0.0)
         cost = float(w @ p["H"] @ w + 2.0 * p["q"] @ w)
-        short = float(np.maximum(z_target - self.sign * linear[0], 0.0).sum())
-        return cost + _PENALTY * (short + excess), linear
+        short = float(np.maximum(z_target - self.sign * z, 0.0).sum())
+        return cost + _PENALTY * (short + excess), z, active
+
+    def _linearise(self, p: dict[str, Any], w: np.ndarray, z: np.ndarray, active: np.ndarray) -> tuple:
+        """The linearisation at ``w`` for the next iteration: the logits ``z``, their gradients in the networks'
+        input (from the ``active`` units of :meth:`_merit`) and that input's Jacobian in ``w``."""
+        return z, self._gradients(active), network_input(p, w)[1]
 
     def _line_search(
         self, p: dict[str, Any], w: np.ndarray, step: np.ndarray, merit: float, z_target: float, delta: float
     ) -> tuple[np.ndarray, tuple, float, float]:
         """The first ``w + α (step − w)``, α = 1, ½, ¼, ⅛, below ``merit`` (else the lowest).
 
-        Returns the point, its logits and gradients, the largest change of a variable, and its merit.
+        Returns the point, its linearisation (:meth:`_linearise`), the largest change of a variable, and its merit.
         """
         direction, best = step - w, None
         for alpha in (1.0, 0.5, 0.25, 0.125):
             trial = w + alpha * direction
-            value, linear = self._merit(p, trial, z_target, delta)
+            value, z, active = self._merit(p, trial, z_target, delta)
             if best is None or value < best[3]:
-                best = (trial, linear, alpha * float(np.abs(direction).max()), value)
+                best = (trial, (z, active), alpha, value)
             if value < merit:
                 break
-        return best
+        trial, (z, active), alpha, value = best
+        return trial, self._linearise(p, trial, z, active), alpha * float(np.abs(direction).max()), value
 
     @staticmethod
     def _qp_step(
-        rows: np.ndarray, h: np.ndarray, hq: np.ndarray, hg: np.ndarray, upper: np.ndarray, members: int
-    ) -> np.ndarray:
-        """The QP's minimiser ``H⁻¹(Gᵀλ/2 − q)`` from its dual; the rows after the members' are tried inactive first."""
+        rows: np.ndarray, h: np.ndarray, hq: np.ndarray, hg: np.ndarray, upper: np.ndarray, members: int,
+        start: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """The QP's minimiser ``H⁻¹(Gᵀλ/2 − q)`` from its dual, and the multipliers λ.
+
+        :func:`box_qp` starts from ``start`` (the last QP's multipliers, zero for rows it did not have): the same
+        minimiser, in fewer active-set steps. Unless one of them was active there, the rows after the members' are
+        tried inactive first (a smaller dual, often enough).
+        """
         dual, linear = 0.5 * rows @ hg, rows @ hq + h
-        lam = np.zeros(len(h))
-        lam[:members] = box_qp(dual[:members, :members], linear[:members], upper[:members])
-        step = hg @ lam / 2.0 - hq
-        if np.any(rows[members:] @ step < h[members:] - 1e-9):
-            lam = box_qp(dual, linear, upper)
+        if not np.any(start[members:] > 0.0):
+            lam = np.zeros(len(h))
+            lam[:members] = box_qp(dual[:members, :members], linear[:members], upper[:members], start[:members])
             step = hg @ lam / 2.0 - hq
-        return step
+            if not np.any(rows[members:] @ step < h[members:] - 1e-9):
+                return step, lam
+            start = np.concatenate([lam[:members], start[members:]])
+        lam = box_qp(dual, linear, upper, start)
+        return hg @ lam / 2.0 - hq, lam
 
     def solve(
         self,
@@ -302,11 +277,11 @@ class LinearisedRun:
         """
         self.p = p
         if self._factor is not None:  # H is unchanged: the factor stays
-            self.merit, self._linear = self.solver._merit(p, self.w, self.z_target, self.delta)
+            self.merit, self._linear = self._linearised_merit(self.w)
         if self.best is None:
             return
-        x, _ = network_input(p, self.best)
-        reached, cost, within = self._assess(self.best, self.solver.logits(x)[0])
+        x, _ = network_input(p, self.best, jacobian=False)
+        reached, cost, within = self._assess(self.best, self.solver._forward(x)[0])
         if reached > self.z_clip and within:
             self.best_cost, self.status = cost, "accepted"
         else:
@@ -317,14 +292,29 @@ class LinearisedRun:
         p = self.p
         reached = float((self.solver.sign * z).min())
         cost = float(w @ p["H"] @ w + 2.0 * p["q"] @ w)
-        return reached, cost, bool(np.linalg.norm(p["g0"] + p["C"] @ w) <= self.delta_pos)
+        gap = p["g0"] + p["C"] @ w
+        return reached, cost, math.sqrt(float(gap @ gap)) <= self.delta_pos
+
+    def _linearised_merit(self, w: np.ndarray) -> tuple[float, tuple]:
+        """The merit at ``w`` and the linearisation there (:meth:`LinearisedSolver._linearise`)."""
+        merit, z, active = self.solver._merit(self.p, w, self.z_target, self.delta)
+        return merit, self.solver._linearise(self.p, w, z, active)
+
+    def _solve_h(self, b: np.ndarray) -> np.ndarray:
+        """``(H + μI)⁻¹ b`` from the factor: LAPACK's ``potrs`` as ``cho_solve`` calls it, without its checks."""
+        factor, lower = self._factor
+        x, _ = dpotrs(factor, b, lower=lower)
+        return x
 
     def _prepare(self) -> None:
-        p, m = self.p, len(self.w)
+        p, m, rows = self.p, len(self.w), self.members + 3  # the members', the speed's, two tangent planes
         self.mu = self.solver.proximal * max(np.trace(p["H"]) / m, 1e-12)
         self._factor = cho_factor(p["H"] + self.mu * np.eye(m))
-        self._upper0 = np.r_[np.full(self.members, _PENALTY), np.inf]
-        self.merit, self._linear = self.solver._merit(p, self.w, self.z_target, self.delta)
+        # the QP's rows G w ≥ h and H_μ⁻¹ Gᵀ, filled in place each iteration
+        self._rows, self._h, self._hg = np.empty((rows, m)), np.empty(rows), np.empty((m, rows), order="F")
+        self._upper = np.r_[np.full(self.members, _PENALTY), np.full(3, np.inf)]
+        self._lam = np.zeros(self.members + 1)  # the last QP's multipliers of the members' and the speed's rows
+        self.merit, self._linear = self._linearised_merit(self.w)
 
     def run(self, deadline: float, *, at_least_one: bool = False, clock: Any = time.thread_time) -> bool:
         """Iterate until finished or until the next iteration is predicted to end past ``deadline``.
@@ -347,21 +337,25 @@ class LinearisedRun:
                 if not solver.predict_setup:  # the next iteration will not carry the preparation
                     now = clock()
             z, g, jacobian = self._linear
-            w = self.w
+            w, r, rows, h, hg, upper = self.w, members + 1, self._rows, self._h, self._hg, self._upper
             # rows G w ≥ h: encoding (linearised at w), speed; then tangents of the terminal ball as needed
-            rows = np.vstack([solver.sign * (g @ jacobian), p["d"]])
-            h = np.r_[self.z_target - solver.sign * z + rows[:members] @ w, p["rhs"][2]]
-            upper, hq = self._upper0, cho_solve(self._factor, p["q"] - self.mu * w)
-            hg = cho_solve(self._factor, rows.T)
-            step = solver._qp_step(rows, h, hq, hg, upper, members)
+            rows[:members] = solver.sign * (g @ jacobian)
+            rows[members] = p["d"]
+            h[:members] = self.z_target - solver.sign * z + rows[:members] @ w
+            h[members] = p["rhs"][2]
+            hq = self._solve_h(p["q"] - self.mu * w)
+            hg[:, :r] = self._solve_h(rows[:r].T)
+            step, lam = solver._qp_step(rows[:r], h[:r], hq, hg[:, :r], upper[:r], members, self._lam)
             for _ in range(2):  # cutting planes: a tangent of the ball at the new gap while it lies outside
                 outside = g0 + c @ step
-                if np.linalg.norm(outside) <= delta * 1.001:
+                distance = math.sqrt(float(outside @ outside))
+                if distance <= delta * 1.001:
                     break
-                normal = outside / np.linalg.norm(outside)
-                rows, h = np.vstack([rows, -normal @ c]), np.r_[h, normal @ g0 - delta]
-                hg, upper = np.c_[hg, cho_solve(self._factor, -c.T @ normal)], np.r_[upper, np.inf]
-                step = solver._qp_step(rows, h, hq, hg, upper, members)
+                normal = outside / distance
+                rows[r], h[r], hg[:, r] = -normal @ c, normal @ g0 - delta, self._solve_h(-c.T @ normal)
+                r += 1
+                step, lam = solver._qp_step(rows[:r], h[:r], hq, hg[:, :r], upper[:r], members, np.append(lam, 0.0))
+            self._lam = lam[: members + 1]
             w, self._linear, moved, self.merit = solver._line_search(p, w, step, self.merit, self.z_target, delta)
             self.w = w
             self.done += 1

@@ -172,7 +172,7 @@ class OptimalBlender(Block):
         (:mod:`~cogblocks.amplification.past`).
     gradient, predict_setup : str, bool
         Linearised: how the members' gradients are taken, whether the prediction of an iteration's time counts the
-        solve's preparation (``"stacked"``, True: :class:`~cogblocks.amplification.linearised.LinearisedSolver`).
+        solve's preparation (``"blocks"``, True: :class:`~cogblocks.amplification.linearised.LinearisedSolver`).
 
     Notes
     -----
@@ -212,7 +212,7 @@ class OptimalBlender(Block):
         removal_margin: float | None = None,
         guard_rest: bool = False,
         guard_margin: float = 0.0,
-        gradient: str = "stacked",
+        gradient: str = "blocks",
         predict_setup: bool = True,
         period: float | None = None,
     ) -> None:

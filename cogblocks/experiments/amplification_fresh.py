@@ -165,7 +165,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--removal-margin", type=float, default=OPTIMISED.get("removal_margin"))
     parser.add_argument("--guard-rest", type=int, choices=(0, 1), default=int(OPTIMISED.get("guard_rest", False)))
     parser.add_argument("--guard-margin", type=float, default=OPTIMISED.get("guard_margin", 0.0))
-    parser.add_argument("--gradient", default=OPTIMISED.get("gradient", "stacked"), choices=GRADIENTS)
+    parser.add_argument("--gradient", default=OPTIMISED.get("gradient", "blocks"), choices=GRADIENTS)
     parser.add_argument("--predict-setup", type=int, choices=(0, 1), default=int(OPTIMISED.get("predict_setup", True)))
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)

@@ -101,7 +101,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="margin for e_des 0 (default --margin)")  # fmt: skip
     parser.add_argument("--guard-rest", type=int, choices=(0, 1), default=int(defaults.get("guard_rest", False)))
     parser.add_argument("--guard-margin", type=float, default=defaults.get("guard_margin", 0.0))
-    parser.add_argument("--gradient", default=defaults.get("gradient", "stacked"), choices=GRADIENTS)
+    parser.add_argument("--gradient", default=defaults.get("gradient", "blocks"), choices=GRADIENTS)
     parser.add_argument("--predict-setup", type=int, choices=(0, 1), default=int(defaults.get("predict_setup", True)))
     parser.add_argument(
         "--track-past", type=int, choices=(0, 1), default=int(defaults.get("track_past", False)),

@@ -138,5 +138,5 @@ def test_command_passes_the_tenth_round_options(monkeypatch):
     given, default = (call["optimised"] for call in calls)
     assert (given["gradient"], given["predict_setup"], given["margin"]) == ("blocks", False, 0.0999)
     assert (given["time_limit_ms"], default["time_limit_ms"]) == (3.5, OPTIMISED["time_limit_ms"])
-    shipped = (OPTIMISED.get("gradient", "stacked"), OPTIMISED.get("predict_setup", True), OPTIMISED["margin"])
+    shipped = (OPTIMISED.get("gradient", "blocks"), OPTIMISED.get("predict_setup", True), OPTIMISED["margin"])
     assert (default["gradient"], default["predict_setup"], default["margin"]) == shipped
