@@ -294,14 +294,16 @@ def _chosen(block: GuardedPacingMotion) -> list[tuple[int, np.ndarray, np.ndarra
 
 
 def test_early_alters_only_where_the_gain_shows_within_early_seconds():
-    """Seed 3's test group 100 (development data since its report): at 11.5 s the default starts a pace predicted to
-    gain 0.048 in mean r over 20 s and nothing over the first 10 s; with ``early=10`` no alteration is chosen whose
-    predicted mean r over its first 10 s is below doing nothing's, and that pace is not started."""
+    """Seed 3's test group 100 (development data since its report): at 11.5 s, without ``early``, the block starts a
+    pace predicted to gain 0.048 in mean r over 20 s and nothing over the first 10 s; with ``early=10`` (the default)
+    no alteration is chosen whose predicted mean r over its first 10 s is below doing nothing's, and that pace is not
+    started."""
     group = random_groups(101, "test", 3)[100]
-    plain = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+    plain = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration, early=None)
     _closed_loop(group, plain, 12.6, [])
     assert plain.choices[:10] == [NONE] * 10 and plain.choices[10] == PACE
-    early = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration, early=10.0)
+    early = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+    assert early.early == 10.0
     record = _chosen(early)
     _closed_loop(group, early, 12.6, [])
     assert early.job.checkpoint == 200  # 10 s of 50 ms steps
