@@ -58,15 +58,16 @@ def box_qp(m: np.ndarray, b: np.ndarray, upper: np.ndarray, start: np.ndarray | 
                 break
             held[leave] = False
             continue
-        step, block = 1.0, -1
+        step, block, bound = 1.0, -1, 0.0
         for i, d in zip(free, direction, strict=True):
             limit = -lam[i] / d if d < 0 else (ub[i] - lam[i]) / d if d > 0 else math.inf
             if limit < step:
-                step, block = limit, i
+                step, block, bound = limit, i, 0.0 if d < 0 else ub[i]
         for i, d in zip(free, direction, strict=True):
             lam[i] = min(max(lam[i] + step * d, 0.0), ub[i])
         if block >= 0:
-            held[block] = True
+            # exactly at its bound: a rounding residue (say 1e-256 above zero) would pass for the other bound
+            lam[block], held[block] = bound, True
     return np.array(lam)
 
 
