@@ -75,7 +75,7 @@ def _solve(a: list[list[float]], y: list[float]) -> list[float]:
     """``a x = y`` for a small symmetric positive definite ``a`` (box_qp's free block: 1–5 variables), by ``LDLᵀ``.
 
     No pivoting is needed for a positive definite matrix, and no square root (none to fail on a pivot that
-    rounding leaves at or below zero): about a sixth of the products of Gaussian elimination, in plain loops.
+    rounding leaves at or below zero): about half the products of Gaussian elimination, in plain loops.
     """
     if len(y) == 1:  # the most frequent sizes, in closed form (Cramer's rule for two)
         return [y[0] / a[0][0]]
