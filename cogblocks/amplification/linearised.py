@@ -107,11 +107,15 @@ class LinearisedSolver:
         # each member's own block of the first layer, padded with zero rows to the largest (a batched product);
         # _gather picks each member's output weights times its units' activity, the padding's from a trailing zero
         hidden = max(len(w) for w in w2)
-        self._own = np.zeros((len(w2), hidden, w1.shape[1]))
         self._gather = np.full((len(w2), hidden), len(b1))
         for k, rows in enumerate(blocks):
-            self._own[k, : rows.stop - rows.start] = w1[rows]
             self._gather[k, : rows.stop - rows.start] = np.arange(rows.start, rows.stop)
+        if hidden * len(w2) == len(b1):  # no padding: a view of the stacked layer, not a second copy in the cache
+            self._own = w1.reshape(len(w2), hidden, w1.shape[1])  # (an iteration 0.92x as long on the shipped seven)
+        else:
+            self._own = np.zeros((len(w2), hidden, w1.shape[1]))
+            for k, rows in enumerate(blocks):
+                self._own[k, : rows.stop - rows.start] = w1[rows]
         self._weights = np.append(self.w2.sum(axis=0), 0.0)  # the output weight of every hidden unit (one member's)
         self.b2 = np.asarray(b2, dtype=np.float64)
         self.iteration = 0.0  # CPU seconds of the last iteration: the prediction of the next one's

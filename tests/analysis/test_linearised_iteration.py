@@ -2,8 +2,11 @@
 
 The line search takes values only at its trial points and the gradients at the kept one, :func:`box_qp` starts
 from the last multipliers, the members' gradients are one batched product: checked here against independent
-NumPy evaluations of the same formulas on the shipped blender's real problems, and against the reference paths.
+NumPy evaluations of the same formulas on the shipped blender's real problems, and against the reference paths;
+:func:`box_qp`'s minimiser against an enumeration of the active sets and the KKT conditions, on the real duals too.
 """
+
+import itertools
 
 import numpy as np
 import pytest
@@ -125,3 +128,70 @@ def test_box_qp_from_a_start_is_the_same_minimiser(seed):
     starts = [rng.normal(size=r) * 2.0, cold + rng.normal(size=r) * 1e-3, np.minimum(cold, 1e6), np.full(r, 1e3)]
     for start in starts:
         np.testing.assert_allclose(box_qp(m, b, upper, start), cold, rtol=0, atol=1e-9 * (1.0 + np.abs(cold).max()))
+
+
+def enumerated_minimiser(m, b, upper):
+    """The box QP's minimiser by trying every split of the variables into at zero, at the upper bound and free (3^r
+    linear solves with NumPy): the feasible stationary point of the least objective, independent of box_qp's path."""
+    r, best = len(b), (np.inf, None)
+    for split in itertools.product(range(3), repeat=r):
+        lam = np.where(np.array(split) == 1, upper, 0.0)
+        if np.any(np.isinf(lam)):
+            continue
+        free = np.array(split) == 2
+        if free.any():
+            lam[free] = np.linalg.solve(m[np.ix_(free, free)], b[free] - m[np.ix_(free, ~free)] @ lam[~free])
+        if np.all(lam >= -1e-12) and np.all(lam <= upper + 1e-12):
+            value = 0.5 * lam @ m @ lam - b @ lam
+            if value < best[0]:
+                best = (value, lam)
+    return best[1]
+
+
+def assert_kkt(m, b, upper, lam):
+    """Within the bounds, with the objective's gradient zero on the free variables and pointing out of the box on the
+    bound ones (to 1e-8 of the problem's scale)."""
+    grad = m @ lam - b
+    tol = 1e-8 * (1.0 + np.abs(b).max() + np.abs(m).max() * np.abs(lam).max())
+    assert np.all(lam >= 0.0) and np.all(lam <= upper)
+    at_zero, at_upper = lam <= 0.0, lam >= upper
+    free = ~at_zero & ~at_upper
+    assert np.all(np.abs(grad[free]) <= tol)
+    assert np.all(grad[at_zero] >= -tol) and np.all(grad[at_upper] <= tol)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_box_qp_is_the_enumerated_minimiser(seed):
+    """On random definite duals of 1–6 variables (free blocks of every size box_qp solves, the closed forms for one
+    and two included), cold and from a start: the KKT point that enumerating the active sets finds, to 1e-9."""
+    rng = np.random.default_rng(100 + seed)
+    r = int(rng.integers(1, 7))
+    g = rng.normal(size=(r, r + int(rng.integers(1, 5))))
+    m, b = g @ g.T, rng.normal(size=r) * 3.0
+    upper = np.where(rng.random(r) < 0.6, rng.random(r) * 2.0, np.inf)
+    expected = enumerated_minimiser(m, b, upper)
+    for start in (None, rng.normal(size=r)):
+        lam = box_qp(m, b, upper, start)
+        assert_kkt(m, b, upper, lam)
+        np.testing.assert_allclose(lam, expected, rtol=0, atol=1e-9 * (1.0 + np.abs(expected).max()))
+
+
+def test_box_qp_meets_the_kkt_conditions_on_the_captured_duals(captured):
+    """Every dual the captured solves pose (7–10 variables, 12 iterations at most) gets a KKT point."""
+    solver, _, problems = captured
+    duals = []
+
+    def checked(m, b, upper, start=None):
+        lam = box_qp(m, b, upper, start)
+        duals.append((m, b, upper, lam))
+        return lam
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr("cogblocks.amplification.linearised.box_qp", checked)
+        for p, w0, args in problems:
+            run = solver.start(p, w0, *args)
+            run.max_iter = ITERATIONS
+            run.run(1.0, clock=lambda: 0.0)
+    assert len(duals) >= 2 * len(problems) and max(len(b) for _, b, _, _ in duals) >= 8
+    for m, b, upper, lam in duals:
+        assert_kkt(m, b, upper, lam)

@@ -20,11 +20,13 @@ def random_solver(rng, hidden=(5, 7, 4), inputs=6, **options):
     return LinearisedSolver(w1, b1, w2, rng.normal(size=len(hidden)), 1.0, **options), (w1, b1, w2)
 
 
+@pytest.mark.parametrize("hidden", [(5, 7, 4), (6, 6, 6)])  # padded blocks; blocks viewing the stacked layer
 @pytest.mark.parametrize("gradient", ["stacked", "blocks"])
-def test_gradients_are_each_members_own(gradient):
+def test_gradients_are_each_members_own(gradient, hidden):
     """Against each member computed on its own: Σ_h w2_h·[pre_h > 0]·w1_h over its hidden units only."""
     rng = np.random.default_rng(3)
-    solver, (w1, b1, w2) = random_solver(rng, gradient=gradient)
+    solver, (w1, b1, w2) = random_solver(rng, hidden=hidden, gradient=gradient)
+    assert np.shares_memory(solver._own, solver.w1) == (len(set(hidden)) == 1)
     x = rng.normal(size=w1.shape[1])
     logits, gradients = solver.logits(x)
     start = 0
