@@ -1,19 +1,19 @@
 """Optimisation-based blending for the PoP of Amplification: Problem (13) solved online with casadi.
 
-The table-lookup architecture (:class:`~cogblocks.amplification.VelocityBlender`) restricts the
-altered velocity to a blend ``c·v_h + (1 − c)·v_r`` with ``c`` read from w̃ for the nearest library
-movement. :class:`OptimalBlender` drops the restriction and solves, at every decision point, the
-problem the table stands for (appendix paper, Problem (13) with the distance (3a) as objective):
+The table-lookup architecture (:class:`~cogblocks.amplification.VelocityBlender`) restricts the altered velocity to a
+blend ``c·v_h + (1 − c)·v_r`` with ``c`` read from w̃ for the nearest library movement. :class:`OptimalBlender` drops
+the restriction and solves, at every decision point, the problem the table stands for (appendix paper: Problem (13),
+the distance (3a) as objective):
 
     min_u   Σ_t ‖u(t)‖²                                    (closest to the human, 3a)
     s.t.    ε̂(v_a) ≥ 0.9 (e_des = 1) or ≤ 0.1 (e_des = 0)   (13b, with the clipping rule)
             ‖p_a(T) − p_h(T)‖ ≤ δ_pos                       (13c)
 
-with ``v_a = v_h + u`` and ``u`` piecewise linear on knots every ΔT samples, over a receding horizon:
-the human's future is predicted by η_i (the projector's nearest library movement, expanded to its
-full length) and only the samples up to the next decision are applied. Cubic-spline resampling is
-linear in the samples for a fixed length (:func:`input_map`), so the classifier input is affine in
-the knots and the only nonlinearity is the network itself (:func:`encoder_to_casadi`); the problem's
+with ``v_a = v_h + u`` and ``u`` piecewise linear on knots every ΔT samples, over a receding horizon: the human's
+future is predicted by η_i (the projector's nearest library movement, expanded to its full length; or the mean of
+several, :mod:`~cogblocks.amplification.neighbours`) and only the samples up to the next decision are applied.
+Cubic-spline resampling is linear in the samples for a fixed length (:func:`input_map`), so the classifier input is
+affine in the knots and the only nonlinearity is the network itself (:func:`encoder_to_casadi`); the problem's
 parameters are built in :mod:`cogblocks.amplification.plan`, which says why these decision variables."""
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ from cogblocks.amplification.encoder import (
 from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, solve_decision
 from cogblocks.amplification.linearised import GRADIENTS, LinearisedSolver, one_blas_thread
 from cogblocks.amplification.members import StackedNetworks
+from cogblocks.amplification.neighbours import NeighbourPrediction
 from cogblocks.amplification.past import follow_past
 from cogblocks.amplification.plan import PlanResult, library_prediction, plan_problem, sigmoid
 from cogblocks.amplification.solution import SolutionTable
@@ -71,24 +72,22 @@ class OptimalBlender(Block):
     network inside the solver is smoothed (softplus of sharpness β = ``sharpness`` instead of ReLU);
     the reported ε̂ and the acceptance checks use the exact network.
 
-    The classifier restricts a movement to its samples up to the last one faster than 1 mm/s, so
-    the plan fixes that length ``L``: at least the reference's length (and η_i's, encoding fear), past
-    ``T`` while the human still moves (removing fear: only at the first plan, so that the altered
-    movement may end sooner than the human's), never decreasing; from ``L`` on the block outputs zero, and
-    the last constraint keeps the last planned sample moving, so the classifier sees the length the
-    plan was made for. The encoding constraint is soft with an exact penalty (ρ = 1000 per logit
-    unit): when it cannot be met, the plan gets as close as it can instead of failing. Only the
-    samples up to the next decision are applied before it re-plans (receding horizon),
-    warm-started from the previous plan sampled at the new knots (at the first decision, from the
-    table's blend on the prediction) and from the previous multipliers.
+    The classifier restricts a movement to its samples up to the last one faster than 1 mm/s, so the plan fixes that
+    length ``L``: at least the reference's length (and η_i's, encoding fear), past ``T`` while the human still moves
+    (removing fear: only at the first plan, so that the altered movement may end sooner than the human's), never
+    decreasing; from ``L`` on the block outputs zero, and the last constraint keeps the last planned sample moving,
+    so the classifier sees the length the plan was made for. The encoding constraint is soft with an exact penalty
+    (ρ = 1000 per logit unit): when it cannot be met, the plan gets as close as it can instead of failing. Only the
+    samples up to the next decision are applied before it re-plans (receding horizon), warm-started from the
+    previous plan sampled at the new knots (at the first decision, from the table's blend on the prediction) and
+    from the previous multipliers.
 
-    Fallback: a solve stopped by the time limit (or the iteration limit) is used if its iterate
-    meets the clipping threshold (ε̂ > 0.9, or < 0.1) and δ_pos for the predicted movement;
-    otherwise the previous plan is kept (it is defined on absolute time, so keeping it is shifting
-    it), or at the first decision the table-lookup blend ``c = w̃(η_i, v_r)`` is used until a solve
-    succeeds (pass-through without a table). ``fallbacks`` counts them; :attr:`results` has every
-    decision, :attr:`solve_ms` the times of those that ran the solver and :attr:`tick_ms` the CPU time
-    of every tick that worked on one (building, iterating, checking; not the ticks that only wait).
+    Fallback: a solve stopped by the time limit (or the iteration limit) is used if its iterate meets the clipping
+    threshold (ε̂ > 0.9, or < 0.1) and δ_pos for the predicted movement; otherwise the previous plan is kept (it is
+    defined on absolute time, so keeping it is shifting it), or at the first decision the table-lookup blend ``c =
+    w̃(η_i, v_r)`` is used until a solve succeeds (pass-through without a table). ``fallbacks`` counts them;
+    :attr:`results` has every decision, :attr:`solve_ms` the times of those that ran the solver and :attr:`tick_ms`
+    the CPU time of every tick that worked on one (building, iterating, checking; not the ticks that only wait).
 
     Ports
     -----
@@ -131,13 +130,11 @@ class OptimalBlender(Block):
     knot_spacing : int
         Samples between knots (ΔT = 10).
     time_limit_ms : float
-        CPU-time limit (8 ms): so that the plans do not depend on the load of the machine. sqpmethod and
-        IPOPT: of one solve (sqpmethod: an iteration callback stops it before an iteration that, taking as long
-        as the previous one, would end past the limit; IPOPT: ``max_cpu_time``, checked after each iteration);
-        building the problem and checking the result come on top. linearised: of everything the block does for
-        a decision in one tick (building, iterating, checking): no iteration starts that, taking as long as the
-        last one, would end past it (the last check's time kept in reserve on the committing tick), except that
-        a decision with no iteration yet runs one.
+        CPU-time limit (8 ms), so that the plans do not depend on the machine's load. sqpmethod and IPOPT: of one
+        solve (sqpmethod: a callback stops it before an iteration that, as long as the last, would end past it;
+        IPOPT: ``max_cpu_time``), building and checking on top. linearised: of all the block does for a decision in
+        one tick; no iteration starts that, as long as the last, would end past it (the last check's time kept in
+        reserve on the committing tick), except that a decision with no iteration yet runs one.
     solve_ticks : int
         Ticks one decision's solve may span (linearised only; 1). With more, the decision at tick ``T`` plans from
         ``T + solve_ticks − 1`` on, the plan in force (or the table's blend, or the pass-through) covering the ticks
@@ -170,6 +167,8 @@ class OptimalBlender(Block):
         With ``solve_ticks`` > 1 (linearised only): every tick of a spread solve puts the past emitted so far
         into its problem in place of the prediction, the iterations going on from there
         (:mod:`~cogblocks.amplification.past`).
+    neighbours : int
+        The prediction is η_i (1) or the mean of as many movements nearest to the human (:mod:`.neighbours`).
     gradient, predict_setup : str, bool
         Linearised: how the members' gradients are taken, whether the prediction of an iteration's time counts the
         solve's preparation (``"blocks"``, True: :class:`~cogblocks.amplification.linearised.LinearisedSolver`).
@@ -214,6 +213,7 @@ class OptimalBlender(Block):
         guard_margin: float = 0.0,
         gradient: str = "blocks",
         predict_setup: bool = True,
+        neighbours: int = 1,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -257,6 +257,8 @@ class OptimalBlender(Block):
         self.iterations = positive_int(self, "iterations", iterations)
         self.gradient = one_of(self, "gradient", gradient, GRADIENTS)
         self.predict_setup = flag(self, "predict_setup", predict_setup)
+        self.neighbours = (prediction := NeighbourPrediction(self, library, neighbours)).k
+        self._neighbours = prediction
         self.emit = one_of(self, "emit", emit, EMISSIONS)
         self.track_past = flag(self, "track_past", track_past)
         if self.track_past and self.solver != "linearised":
@@ -289,6 +291,7 @@ class OptimalBlender(Block):
         self.add_state("handled", 0)  # decisions handled
         self.add_state("multipliers", np.zeros(len(networks) + 3))  # warm start: networks, terminal, speed, slack
         self.add_state("fallbacks", 0)
+        self._neighbours.declare(self)
         self.results: list[PlanResult] = []
 
     def setup(self) -> None:
@@ -339,6 +342,7 @@ class OptimalBlender(Block):
         if t < len(self.human):
             self.human[t] = self.v_h.value if plausible(self.v_h.value) else 0.0
             self.altered[t] = self.v_a.value if plausible(self.v_a.value) else 0.0
+            self._neighbours.record(self, t)
 
     # --- one decision ---------------------------------------------------------------------------------
 
@@ -381,9 +385,9 @@ class OptimalBlender(Block):
         lib, n = self.library, len(self.human)
         t0 = min(t + self.solve_ticks - 1, n - 1)
         at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
-        held = library_prediction(lib.velocity[nearest], self.human, t, moving=not at_rest)
+        held = library_prediction(self._neighbours.basis(self, nearest), self.human, t, moving=not at_rest)
         anchor = held[t0 - 1]  # emitting a plan, the prediction at t0 − 1
-        # encoding fear, the plan lasts at least as long as the prediction; removing it, the reference's length
+        # encoding fear, the plan lasts at least as long as η_i's movement; removing it, the reference's length
         # is enough: the altered movement may end before the human's, having covered the same distance sooner
         length = max(state["end"], int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
         if not at_rest and (self.e_des or state["end"] == 0):
@@ -410,7 +414,7 @@ class OptimalBlender(Block):
                 problem, w0, self._z_target, self._z_clip, self._delta, self.delta_pos, self.iterations
             )
         else:
-            job["solved"] = self._solve(problem, w0)
+            job["solved"] = solve_decision(self, problem, w0)  # knots (None: fall back), multipliers, status
         return job
 
     def _finish(self, t: int, new: dict[str, Any]) -> dict[str, Any]:
@@ -473,10 +477,6 @@ class OptimalBlender(Block):
     def _logit(self, x: np.ndarray) -> float:
         """The logit of the least favourable network for ``e_des`` (the minimum of ``sign·z``, times ``sign``)."""
         return float(self._sign * np.min(self._sign * self._stack.logits(x)))
-
-    def _solve(self, problem: dict[str, Any], w0: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, str]:
-        """Knots (None: fall back), multipliers and status of one casadi solve (:func:`solve_decision`)."""
-        return solve_decision(self, problem, w0)
 
     def _emission(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> np.ndarray:
         """The movement emitted under ``state`` (the past, then from ``t`` on) if the human follows ``predicted``."""

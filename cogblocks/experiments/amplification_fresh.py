@@ -7,6 +7,7 @@ Usage::
         [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
         [--solve-ticks N] [--time-limit-ms T] [--realism R] [--components C] [--emit E] [--margin M]
         [--removal-margin M] [--guard-rest 0|1] [--guard-margin G] [--gradient stacked|blocks] [--predict-setup 0|1]
+        [--neighbours K] [--terminal-margin MM]
     python -m cogblocks.experiments.amplification_fresh --library-seed 3000 --real
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
@@ -19,8 +20,8 @@ subspace), in both directions; ``--share`` replays a seeded, stratified share of
 of :func:`~cogblocks.diagrams.amplification.run_amplification` (``e_des = 1`` at the top level,
 ``e_des = 0`` under ``"e_des_0"``). ``--profile-members``, ``--kinematic-members`` and ``--kinematic-weights``
 replace the constrained networks, ``--solve-ticks``, ``--time-limit-ms``, ``--realism``, ``--components``,
-``--emit``, ``--margin``, ``--removal-margin``, ``--guard-rest``, ``--guard-margin``, ``--gradient`` and
-``--predict-setup`` the optimised blender's settings (as
+``--emit``, ``--margin``, ``--removal-margin``, ``--guard-rest``, ``--guard-margin``, ``--gradient``,
+``--predict-setup``, ``--neighbours`` and ``--terminal-margin`` the optimised blender's settings (as
 ``amplification_inner``'s), to try a setting on a *validation* library (a seed declared as such before it is looked
 at); without them the chain is the shipped one.
 ``--real`` prints instead what the shipped judges decide on the library's *real* movements
@@ -167,6 +168,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--guard-margin", type=float, default=OPTIMISED.get("guard_margin", 0.0))
     parser.add_argument("--gradient", default=OPTIMISED.get("gradient", "blocks"), choices=GRADIENTS)
     parser.add_argument("--predict-setup", type=int, choices=(0, 1), default=int(OPTIMISED.get("predict_setup", True)))
+    parser.add_argument("--neighbours", type=int, default=OPTIMISED.get("neighbours", 1), help="movements predicted on")
+    parser.add_argument("--terminal-margin", type=float, default=OPTIMISED.get("terminal_margin", 5.0), help="mm")
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
@@ -174,7 +177,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(json.dumps(real_shares(args.library_seed)))
         return 0
     names = ("solve_ticks", "time_limit_ms", "realism", "components", "emit", "margin", "removal_margin")
-    names += ("guard_margin", "gradient")
+    names += ("guard_margin", "gradient", "neighbours", "terminal_margin")
     flags = {"guard_rest": bool(args.guard_rest), "predict_setup": bool(args.predict_setup)}
     optimised = {name: getattr(args, name) for name in names} | flags
     given = {"profile": args.profile_members, "kinematic": args.kinematic_members}
