@@ -43,7 +43,9 @@ __all__ = [
 #: ε̂ ≥ 0.999 encoding fear and, since the eighth round, ε̂ ≤ 0.00001 removing it (0.001 before), and a penalty
 #: (weight ``realism``) on the altered movement's distance from the subspace of the desired class's ``components``
 #: leading principal directions. Since the ninth round the last plan is emitted as planned (``emit="tail"``), under
-#: a terminal guard that predicts a human at rest to stay at rest (``guard_rest``).
+#: a terminal guard that predicts a human at rest to stay at rest (``guard_rest``). Since the thirteenth round the
+#: human is predicted as the mean of the 5 library movements nearest to its prefix (``neighbours``), and the plan
+#: asks for 5 mm of δ_pos = 20 (``terminal_margin``; 15 mm before).
 OPTIMISED = {
     "solver": "linearised",
     "time_limit_ms": 4.0,
@@ -54,6 +56,8 @@ OPTIMISED = {
     "removal_margin": 0.09999,
     "emit": "tail",
     "guard_rest": True,
+    "neighbours": 5,
+    "terminal_margin": 15.0,
     "components": 12,
 }
 

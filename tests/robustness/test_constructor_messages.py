@@ -427,6 +427,7 @@ CASES = [
     case("OptimalBlender", "guard_margin", 20.0, "[0.0, 20.0)"),
     case("OptimalBlender", "gradient", "dense", "one of ['stacked', 'blocks']"),
     case("OptimalBlender", "predict_setup", 1, "True or False"),
+    case("OptimalBlender", "neighbours", 0, "integer >= 1"),
 ]
 
 
