@@ -100,7 +100,7 @@ def test_fallback_to_the_table_when_out_of_time(setup):
     np.testing.assert_allclose(trace["c"], table_trace["c"], rtol=0, atol=0)
 
 
-def test_fallback_keeps_the_previous_plan(setup):
+def test_fallback_keeps_the_previous_plan(setup, monkeypatch):
     human = setup.humans[3]
     d, _ = replay(setup, human, OptimalBlender(setup.movements, setup.encoder, setup.table, time_limit_ms=1000.0))
     sim = Simulator(d)
@@ -109,7 +109,8 @@ def test_fallback_keeps_the_previous_plan(setup):
     block = d["l2.blender"]
     plan, end = block.plan.copy(), block.end
     assert end > ticks and block.fallbacks == 0
-    block._solve = lambda problem, guess: (None, np.zeros(4), "fallback")  # no solve converges from now on
+    no_plan = lambda blender, problem, guess: (None, np.zeros(4), "fallback")  # noqa: E731
+    monkeypatch.setattr("cogblocks.amplification.optimal.solve_decision", no_plan)  # no solve converges from now on
     tail = sim.run(n_steps=setup.library.max_len - ticks)
     later = [r for r in block.results if r.tick >= ticks]
     assert block.fallbacks == sum(r.status == "fallback" for r in later) > 0

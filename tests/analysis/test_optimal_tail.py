@@ -28,9 +28,11 @@ def networks(setup):
 
 
 def options(**extra):
-    """:data:`OPTIMISED` with a budget no solve reaches: the plans depend on the iteration limit only."""
+    """:data:`OPTIMISED` with a budget no solve reaches: the plans depend on the iteration limit only. The prediction
+    is η_i and the terminal margin the ninth round's (``neighbours=1``, 5 mm), which these tests rebuild from the
+    trace; the shipped prediction is tested in ``test_optimal_neighbours.py``."""
     settings = {k: v for k, v in OPTIMISED.items() if k != "components"}
-    return {**settings, "time_limit_ms": 1000.0, **extra}
+    return {**settings, "time_limit_ms": 1000.0, "neighbours": 1, "terminal_margin": 5.0, **extra}
 
 
 def replay(setup, networks, human, **extra):
