@@ -45,14 +45,15 @@ __all__ = [
 #: leading principal directions. Since the ninth round the last plan is emitted as planned (``emit="tail"``), under
 #: a terminal guard that predicts a human at rest to stay at rest (``guard_rest``). Since the thirteenth round the
 #: human is predicted as the mean of the 5 library movements nearest to its prefix (``neighbours``), and the plan
-#: asks for 5 mm of δ_pos = 20 (``terminal_margin``; 15 mm before).
+#: asks for 5 mm of δ_pos = 20 (``terminal_margin``; 15 mm before). Since the fourteenth round encoding fear plans
+#: for ε̂ ≥ 0.99999 (``margin``; 0.999 before), as deep as removal.
 OPTIMISED = {
     "solver": "linearised",
     "time_limit_ms": 4.0,
     "solve_ticks": 6,
     "iterations": 40,
     "realism": 3000.0,
-    "margin": 0.099,
+    "margin": 0.09999,
     "removal_margin": 0.09999,
     "emit": "tail",
     "guard_rest": True,
