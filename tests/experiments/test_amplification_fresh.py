@@ -140,3 +140,16 @@ def test_command_passes_the_tenth_round_options(monkeypatch):
     assert (given["time_limit_ms"], default["time_limit_ms"]) == (3.5, OPTIMISED["time_limit_ms"])
     shipped = (OPTIMISED.get("gradient", "blocks"), OPTIMISED.get("predict_setup", True), OPTIMISED["margin"])
     assert (default["gradient"], default["predict_setup"], default["margin"]) == shipped
+
+
+def test_command_passes_the_thirteenth_round_options(monkeypatch):
+    import cogblocks.experiments.amplification_fresh as fresh
+
+    calls = []
+    monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
+    assert main(["--json", "--neighbours", "1", "--terminal-margin", "5"]) == 0
+    assert main(["--json"]) == 0
+    given, default = (call["optimised"] for call in calls)
+    assert (given["neighbours"], given["terminal_margin"]) == (1, 5.0)
+    shipped = (OPTIMISED["neighbours"], OPTIMISED["terminal_margin"])
+    assert (default["neighbours"], default["terminal_margin"]) == shipped
