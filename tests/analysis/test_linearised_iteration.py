@@ -17,6 +17,7 @@ from cogblocks.amplification.kinematics import plan_features
 from cogblocks.amplification.linearised import LinearisedSolver, box_qp, network_input
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
+from tests.analysis.optimal_helpers import random_dual
 
 torch.set_num_threads(1)
 ITERATIONS = 12
@@ -120,10 +121,8 @@ def test_box_qp_from_a_start_is_the_same_minimiser(seed):
     """From any start (inside, outside or at the bounds) the active-set method ends at the minimiser it reaches
     from zero (unique: box_qp's ridge makes the dual strictly convex)."""
     rng = np.random.default_rng(seed)
-    r = int(rng.integers(2, 11))
-    g = rng.normal(size=(r, r + int(rng.integers(0, 6))))
-    m, b = g @ g.T, rng.normal(size=r) * 3.0
-    upper = np.where(rng.random(r) < 0.7, rng.random(r) * 2.0, np.inf)
+    m, b, upper = random_dual(rng, (2, 11), (0, 6), 0.7)
+    r = len(b)
     cold = box_qp(m, b, upper)
     starts = [rng.normal(size=r) * 2.0, cold + rng.normal(size=r) * 1e-3, np.minimum(cold, 1e6), np.full(r, 1e3)]
     for start in starts:
@@ -165,10 +164,8 @@ def test_box_qp_is_the_enumerated_minimiser(seed):
     """On random definite duals of 1–6 variables (free blocks of every size box_qp solves, the closed forms for one
     and two included), cold and from a start: the KKT point that enumerating the active sets finds, to 1e-9."""
     rng = np.random.default_rng(100 + seed)
-    r = int(rng.integers(1, 7))
-    g = rng.normal(size=(r, r + int(rng.integers(1, 5))))
-    m, b = g @ g.T, rng.normal(size=r) * 3.0
-    upper = np.where(rng.random(r) < 0.6, rng.random(r) * 2.0, np.inf)
+    m, b, upper = random_dual(rng, (1, 7), (1, 5), 0.6)
+    r = len(b)
     expected = enumerated_minimiser(m, b, upper)
     for start in (None, rng.normal(size=r)):
         lam = box_qp(m, b, upper, start)

@@ -7,7 +7,8 @@ import torch
 from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.linearised import LinearisedRun, LinearisedSolver
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
-from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
+from cogblocks.diagrams.amplification_setup import blender_networks
+from tests.analysis.optimal_helpers import options
 
 torch.set_num_threads(1)
 
@@ -42,7 +43,7 @@ def test_block_gradients_plan_as_the_stacked_ones():
     """Without a binding time limit the two ways give the same decisions (the same numbers to rounding)."""
     setup = amplification_setup(None, 1)
     networks = blender_networks(setup.encoder)
-    settings = {k: v for k, v in OPTIMISED.items() if k != "components"} | {"time_limit_ms": 1000.0}
+    settings = options()
     results = {}
     for gradient in ("stacked", "blocks"):
         blender = OptimalBlender(

@@ -8,21 +8,14 @@ import torch
 from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.emission import final_gap, guard_settings, guarded_velocity, rebased
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
-from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
+from cogblocks.diagrams.amplification_setup import blender_networks
 from cogblocks.experiments.amplification_gap import RecordingBlender, planned_vs_emitted, summarise
 from cogblocks.experiments.amplification_inner import inner_setup
+from tests.analysis.optimal_helpers import eta_i_options
 
 torch.set_num_threads(1)
 DT = 0.01
 REST = 1.0
-
-
-def options(**extra):
-    """:data:`OPTIMISED` with a budget no solve reaches: the plans depend on the iteration limit only. The prediction
-    is η_i and the terminal margin the ninth round's (``neighbours=1``, 5 mm), which these tests rebuild from the
-    trace; the shipped prediction is tested in ``test_optimal_neighbours.py``."""
-    settings = {k: v for k, v in OPTIMISED.items() if k != "components"}
-    return {**settings, "time_limit_ms": 1000.0, "neighbours": 1, "terminal_margin": 5.0, **extra}
 
 
 def replay(setup, blender, human):
@@ -96,7 +89,7 @@ def test_emitted_movement_is_the_last_plan(e_des):
     setup = amplification_setup(None, e_des)
     networks = blender_networks(setup.encoder)
     blender = RecordingBlender(
-        setup.movements, networks, setup.table, e_des=e_des, subspace=setup.subspace, **options(emit="plan")
+        setup.movements, networks, setup.table, e_des=e_des, subspace=setup.subspace, **eta_i_options(emit="plan")
     )
     trace = replay(setup, blender, int(setup.humans[0]))
     v_a = np.asarray(trace["v_a"], dtype=np.float64)
@@ -122,7 +115,7 @@ def test_emitted_movement_is_the_last_plan(e_des):
 def test_option_off_is_the_old_emission():
     setup = amplification_setup(None, 1)
     networks = blender_networks(setup.encoder, profile=2, kinematic=0)
-    settings = options(iterations=10, emit="human")
+    settings = eta_i_options(iterations=10, emit="human")
     blender = OptimalBlender(setup.movements, networks, setup.table, subspace=setup.subspace, **settings)
     assert "basis" not in blender.state_dict() and blender.emit == "human"
     trace = replay(setup, blender, int(setup.humans[0]))
@@ -236,7 +229,7 @@ def removal_setup():
 def guard_replay(setup, **extra):
     """The first removal human replayed through the optimised blender with ``extra`` options."""
     blender = OptimalBlender(setup.movements, blender_networks(setup.encoder), setup.table, e_des=0,
-                             subspace=setup.subspace, **options(**extra))  # fmt: skip
+                             subspace=setup.subspace, **eta_i_options(**extra))  # fmt: skip
     return blender, replay_movement(setup, int(setup.humans[0]), blender)
 
 

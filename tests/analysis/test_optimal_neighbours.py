@@ -11,8 +11,9 @@ from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.neighbours import NeighbourPrediction
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
-from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
+from cogblocks.diagrams.amplification_setup import blender_networks
 from cogblocks.experiments.amplification_gap import RecordingBlender
+from tests.analysis.optimal_helpers import options
 
 torch.set_num_threads(1)
 
@@ -80,10 +81,9 @@ class PredictionRecorder(RecordingBlender):
 @pytest.mark.parametrize("e_des", [1, 0])
 def test_decisions_plan_on_the_neighbours_mean(e_des):
     setup = amplification_setup(None, e_des)
-    settings = {k: v for k, v in OPTIMISED.items() if k != "components"}
     blender = PredictionRecorder(
         setup.movements, blender_networks(setup.encoder), setup.table, e_des=e_des, subspace=setup.subspace,
-        **{**settings, "time_limit_ms": 1000.0, "iterations": 3, "neighbours": 5},
+        **options(iterations=3, neighbours=5),
     )  # fmt: skip
     trace = replay_movement(setup, int(setup.humans[1]), blender)
     v_h = np.asarray(trace["v_h"], dtype=np.float64)

@@ -10,31 +10,15 @@ import cogblocks.amplification.optimal as optimal
 from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.linearised import LinearisedRun
 from cogblocks.amplification.plan import plan_problem, with_past
-from cogblocks.diagrams.amplification import amplification_setup, replay_movement
-from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
+from cogblocks.diagrams.amplification import replay_movement
 from cogblocks.experiments.amplification_gap import planned_vs_emitted, summarise
 from cogblocks.experiments.amplification_inner import inner_setup
+from tests.analysis.optimal_helpers import options
 
 torch.set_num_threads(1)
 
 #: The entries of a problem that are arrays or lists (``kinematics`` is compared through its base).
 ENTRIES = ("x0", "A", "H", "q", "C", "g0", "d", "rhs", "knots", "phi", "phi0", "u_prev")
-
-
-@pytest.fixture(scope="module", params=[1, 0])
-def setup(request):
-    return amplification_setup(None, request.param)
-
-
-@pytest.fixture(scope="module")
-def networks(setup):
-    return blender_networks(setup.encoder)
-
-
-def options(**extra):
-    """:data:`OPTIMISED` with a budget no solve reaches: the plans depend on the iteration limit only."""
-    settings = {k: v for k, v in OPTIMISED.items() if k != "components"}
-    return {**settings, "time_limit_ms": 1000.0, **extra}
 
 
 def replay(setup, blender, human):

@@ -14,6 +14,7 @@ from cogblocks.amplification.subspace import load_subspace, movement_subspace
 from cogblocks.data.features import classifier_inputs, resample_movement
 from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED
+from tests.analysis.optimal_helpers import random_dual
 
 torch.set_num_threads(1)
 
@@ -76,10 +77,8 @@ def test_subspace_bad_input(setup, tmp_path):
 @pytest.mark.parametrize("seed", range(40))
 def test_box_qp_is_the_minimiser(seed):
     rng = np.random.default_rng(seed)
-    r = int(rng.integers(1, 6))
-    g = rng.normal(size=(r, r + int(rng.integers(0, 3))))
-    m, b = g @ g.T, rng.normal(size=r) * 3.0
-    upper = np.where(rng.random(r) < 0.5, rng.random(r) * 2.0, np.inf)
+    m, b, upper = random_dual(rng, (1, 6), (0, 3), 0.5)
+    r = len(b)
     lam = box_qp(m, b, upper)
     assert np.all(lam >= 0.0) and np.all(lam <= upper)
     reference = minimize(

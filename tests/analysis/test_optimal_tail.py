@@ -11,33 +11,16 @@ import torch
 from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.plan import library_prediction
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
-from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
+from cogblocks.diagrams.amplification_setup import blender_networks
 from cogblocks.experiments.amplification_gap import RecordingBlender
+from tests.analysis.optimal_helpers import eta_i_options
 
 torch.set_num_threads(1)
 
 
-@pytest.fixture(scope="module", params=[1, 0])
-def setup(request):
-    return amplification_setup(None, request.param)
-
-
-@pytest.fixture(scope="module")
-def networks(setup):
-    return blender_networks(setup.encoder)
-
-
-def options(**extra):
-    """:data:`OPTIMISED` with a budget no solve reaches: the plans depend on the iteration limit only. The prediction
-    is η_i and the terminal margin the ninth round's (``neighbours=1``, 5 mm), which these tests rebuild from the
-    trace; the shipped prediction is tested in ``test_optimal_neighbours.py``."""
-    settings = {k: v for k, v in OPTIMISED.items() if k != "components"}
-    return {**settings, "time_limit_ms": 1000.0, "neighbours": 1, "terminal_margin": 5.0, **extra}
-
-
 def replay(setup, networks, human, **extra):
     blender = RecordingBlender(
-        setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace, **options(**extra)
+        setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace, **eta_i_options(**extra)
     )
     trace = replay_movement(setup, human, blender, probes={"nearest": "l2.nearest"})
     return blender, trace
@@ -123,7 +106,7 @@ class PredictionRecorder(RecordingBlender):
 
 def test_decisions_plan_on_the_library_prediction(setup, networks):
     blender = PredictionRecorder(
-        setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace, **options()
+        setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace, **eta_i_options()
     )
     trace = replay_movement(setup, int(setup.humans[0]), blender, probes={"nearest": "l2.nearest"})
     v_h = np.asarray(trace["v_h"], dtype=np.float64)
@@ -143,7 +126,7 @@ def test_decisions_plan_on_the_library_prediction(setup, networks):
 
 def test_removal_margin_sets_the_removal_target_only(setup, networks):
     blender = OptimalBlender(setup.movements, networks, setup.table, e_des=setup.e_des, removal_margin=0.09999,
-                             **{k: v for k, v in options().items() if "margin" not in k})  # fmt: skip
+                             **{k: v for k, v in eta_i_options().items() if "margin" not in k})  # fmt: skip
     margin = 0.09999 if setup.e_des == 0 else 0.05  # encoding fear keeps ``margin`` (its default here)
     assert blender._z_target == pytest.approx(math.log((0.9 + margin) / (0.1 - margin)))
     others = {"e_des": setup.e_des, "solver": "linearised"}
