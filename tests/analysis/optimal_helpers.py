@@ -1,4 +1,4 @@
-"""Set-up shared by the optimised blender's tests: its options and random box-QP duals.
+"""Set-up shared by the optimised blender's tests: its options, a recorder of its predictions and random box-QP duals.
 
 Imported as ``tests.analysis.optimal_helpers``: pytest's importlib mode registers ``tests.analysis`` when it
 imports a test module of this folder.
@@ -7,6 +7,7 @@ imports a test module of this folder.
 import numpy as np
 
 from cogblocks.diagrams.amplification_setup import OPTIMISED
+from cogblocks.experiments.amplification_gap import RecordingBlender
 
 
 def options(**extra):
@@ -72,3 +73,16 @@ def random_dual(rng, sizes, extra_columns, finite):
     m, b = g @ g.T, rng.normal(size=r) * 3.0
     upper = np.where(rng.random(r) < finite, rng.random(r) * 2.0, np.inf)
     return m, b, upper
+
+
+class PredictionRecorder(RecordingBlender):
+    """A :class:`~cogblocks.experiments.amplification_gap.RecordingBlender` that also keeps, in ``predictions``, every
+    decision's tick and the prediction its problem and check were made on."""
+
+    def reset(self) -> None:
+        super().reset()
+        self.predictions = []
+
+    def _finish(self, t, new):
+        self.predictions.append((self._job["t"], self._job["predicted"].copy()))
+        return super()._finish(t, new)

@@ -12,8 +12,7 @@ from cogblocks.amplification.neighbours import NeighbourPrediction
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import blender_networks
-from cogblocks.experiments.amplification_gap import RecordingBlender
-from tests.analysis.optimal_helpers import options
+from tests.analysis.optimal_helpers import PredictionRecorder, options
 
 torch.set_num_threads(1)
 
@@ -64,18 +63,6 @@ def test_bad_neighbours():
         OptimalBlender(setup.movements, setup.encoder, solver="linearised", neighbours=0)
     with pytest.raises(ValueError, match="neighbours"):
         OptimalBlender(setup.movements, setup.encoder, solver="linearised", neighbours=2.5)
-
-
-class PredictionRecorder(RecordingBlender):
-    """Keeps every decision's tick and the prediction its problem and check were made on."""
-
-    def reset(self) -> None:
-        super().reset()
-        self.predictions = []
-
-    def _finish(self, t, new):
-        self.predictions.append((self._job["t"], self._job["predicted"].copy()))
-        return super()._finish(t, new)
 
 
 @pytest.mark.parametrize("e_des", [1, 0])

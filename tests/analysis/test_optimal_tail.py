@@ -13,7 +13,7 @@ from cogblocks.amplification.plan import library_prediction
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import blender_networks
 from cogblocks.experiments.amplification_gap import RecordingBlender
-from tests.analysis.optimal_helpers import eta_i_options
+from tests.analysis.optimal_helpers import PredictionRecorder, eta_i_options
 
 torch.set_num_threads(1)
 
@@ -90,18 +90,6 @@ def test_library_prediction(seed):
     expected[t - 1 :] = velocity[t - 1 :]  # the library movement from the last measured sample on
     np.testing.assert_array_equal(library_prediction(velocity, human, t), expected)
     np.testing.assert_array_equal(library_prediction(velocity, human, t, moving=False), 0.0)  # a human at rest
-
-
-class PredictionRecorder(RecordingBlender):
-    """Keeps every decision's tick and the prediction its problem and check were made on."""
-
-    def reset(self) -> None:
-        super().reset()
-        self.predictions = []
-
-    def _finish(self, t, new):
-        self.predictions.append((self._job["t"], self._job["predicted"].copy()))
-        return super()._finish(t, new)
 
 
 def test_decisions_plan_on_the_library_prediction(setup, networks):
