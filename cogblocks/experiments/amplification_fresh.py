@@ -7,7 +7,7 @@ Usage::
         [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
         [--solve-ticks N] [--time-limit-ms T] [--realism R] [--components C] [--emit E] [--margin M]
         [--removal-margin M] [--guard-rest 0|1] [--guard-margin G] [--gradient stacked|blocks] [--predict-setup 0|1]
-        [--neighbours K] [--terminal-margin MM]
+        [--neighbours K] [--terminal-margin MM] [--front-end recorded|kalman] [--noise-mm MM]
     python -m cogblocks.experiments.amplification_fresh --library-seed 3000 --real
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
@@ -23,7 +23,8 @@ replace the constrained networks, ``--solve-ticks``, ``--time-limit-ms``, ``--re
 ``--emit``, ``--margin``, ``--removal-margin``, ``--guard-rest``, ``--guard-margin``, ``--gradient``,
 ``--predict-setup``, ``--neighbours`` and ``--terminal-margin`` the optimised blender's settings (as
 ``amplification_inner``'s), to try a setting on a *validation* library (a seed declared as such before it is looked
-at); without them the chain is the shipped one.
+at); without them the chain is the shipped one. ``--front-end kalman`` (with ``--noise-mm``) feeds the architecture
+the Kalman estimator's tracking of the positions instead of the recorded velocity, as on a live stream.
 ``--real`` prints instead what the shipped judges decide on the library's *real* movements
 (:func:`real_shares`): how often the ensemble judge calls a real movement of ``e_des`` so, the scale of its
 share on the altered ones.
@@ -93,6 +94,8 @@ def run_fresh(
     members: dict[str, int] | None = None,
     kinematic_weights: Sequence[str] | None = None,
     optimised: Mapping[str, Any] | None = None,
+    front_end: str = "recorded",
+    noise_mm: float = 0.0,
 ) -> dict[str, Any]:
     """Both directions on the fresh movements, keyed as ``cogblocks run amplification --json``.
 
@@ -100,7 +103,9 @@ def run_fresh(
     ``directions`` are the ``e_des`` run. ``members`` (``{"profile": P, "kinematic": K}``) and ``kinematic_weights``
     (the files of the kinematic networks, :func:`blender_ensembles`) replace the shipped constrained networks and
     ``optimised`` some of :data:`OPTIMISED` (``components``: the realism subspace's, computed on the shipped training
-    part), to try a setting on a validation library; by default the chain is the shipped one.
+    part), to try a setting on a validation library; by default the chain is the shipped one. ``front_end`` and
+    ``noise_mm`` are :func:`~cogblocks.diagrams.amplification.pop_amplification`'s: ``"kalman"`` replays the tracked
+    positions, with that much noise, through the Kalman estimator, as on a live motion-capture stream.
     """
     ensembles = blender_ensembles(kinematic_weights) if kinematic_weights else None
     settings = {**OPTIMISED, **(optimised or {})}
@@ -116,7 +121,7 @@ def run_fresh(
         result = run_amplification(
             variants, limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
             blender_networks=blender_networks(setup.encoder, **(members or {}), ensembles=ensembles),
-            optimised=settings,
+            optimised=settings, front_end=front_end, noise_mm=noise_mm,
         )  # fmt: skip
         rows.update(result) if e_des == 1 else rows.update(e_des_0=result)
     return rows
@@ -170,6 +175,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--predict-setup", type=int, choices=(0, 1), default=int(OPTIMISED.get("predict_setup", True)))
     parser.add_argument("--neighbours", type=int, default=OPTIMISED.get("neighbours", 1), help="movements predicted on")
     parser.add_argument("--terminal-margin", type=float, default=OPTIMISED.get("terminal_margin", 5.0), help="mm")
+    parser.add_argument("--front-end", default="recorded", choices=("recorded", "kalman"), help="default recorded")
+    parser.add_argument("--noise-mm", type=float, default=0.0, help="with --front-end kalman: position noise, mm")
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
@@ -183,7 +190,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     given = {"profile": args.profile_members, "kinematic": args.kinematic_members}
     members = {name: count for name, count in given.items() if count is not None}
     rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des,
-                     members=members, kinematic_weights=args.kinematic_weights, optimised=optimised)  # fmt: skip
+                     members=members, kinematic_weights=args.kinematic_weights, optimised=optimised,
+                     front_end=args.front_end, noise_mm=args.noise_mm)  # fmt: skip
     if args.json:
         print(json.dumps(rows))
         return 0

@@ -153,3 +153,23 @@ def test_command_passes_the_thirteenth_round_options(monkeypatch):
     assert (given["neighbours"], given["terminal_margin"]) == (1, 5.0)
     shipped = (OPTIMISED["neighbours"], OPTIMISED["terminal_margin"])
     assert (default["neighbours"], default["terminal_margin"]) == shipped
+
+
+def test_command_passes_the_front_end(monkeypatch):
+    import cogblocks.experiments.amplification_fresh as fresh
+
+    calls = []
+    monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
+    assert main(["--json", "--front-end", "kalman", "--noise-mm", "0.3"]) == 0
+    assert main(["--json"]) == 0
+    assert [(c["front_end"], c["noise_mm"]) for c in calls] == [("kalman", 0.3), ("recorded", 0.0)]
+
+
+def test_a_kalman_front_end_reaches_the_replays():
+    # one movement through the tracker: noise changes what the block sees, so the replay differs from the recorded one
+    rows = [
+        run_fresh(2027, ["blend"], limit=1, directions=[1], front_end=front, noise_mm=noise)["blend"]
+        for front, noise in (("recorded", 0.0), ("kalman", 1.0))
+    ]
+    assert rows[0]["n"] == rows[1]["n"] == 1
+    assert rows[0]["final_distance_mm"] != rows[1]["final_distance_mm"]
