@@ -257,8 +257,8 @@ class OptimalBlender(Block):
         self.iterations = positive_int(self, "iterations", iterations)
         self.gradient = one_of(self, "gradient", gradient, GRADIENTS)
         self.predict_setup = flag(self, "predict_setup", predict_setup)
-        self.neighbours = (prediction := NeighbourPrediction(self, library, neighbours)).k
-        self._neighbours = prediction
+        self._neighbours = NeighbourPrediction(self, library, neighbours)
+        self.neighbours = self._neighbours.k
         self.emit = one_of(self, "emit", emit, EMISSIONS)
         self.track_past = flag(self, "track_past", track_past)
         if self.track_past and self.solver != "linearised":
