@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.analysis.sync_ocp import resimulate, windowed_control_bound
+from cogblocks.analysis.sync_ocp import THOROUGH, resimulate, windowed_control_bound
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sync.model import DT, BlenderParams, SyncModel, order_parameter
 
@@ -78,16 +78,20 @@ def upper_bound(
     blender: BlenderParams | None = None,
     max_iter: int = 20,
     pace: bool = True,
+    thorough: bool = False,
 ) -> float:
     """The best r found: the larger of :func:`~cogblocks.analysis.sync_ocp.windowed_control_bound` (whole-run
     optimal control of the alteration, IPOPT with ``max_iter`` iterations per window, started from the
     ``pace`` policy's reference too if ``pace``) and, on the group's own graph, :func:`constant_frequency_scan`.
+    ``thorough`` searches harder (:data:`~cogblocks.analysis.sync_ocp.THOROUGH`: the ``pace`` and the default
+    policy's closed-loop references as starts, three more sweeps; about 3× the CPU), ``pace`` then being moot.
 
     Each is an r that some reference reaches, so the larger is the tighter; neither is a proof that no
     reference does better.
     """
     kw = {"adjacency": adjacency, "duration": duration, "blender": blender}
-    best = windowed_control_bound(group, max_iter=max_iter, pace=pace, **kw)
+    search = THOROUGH if thorough else {"pace": pace}
+    best = windowed_control_bound(group, max_iter=max_iter, **search, **kw)
     if adjacency is None:  # the scan simulates the group's own graph
         scanned = group if duration is None else dataclasses.replace(group, duration=float(duration))
         best = max(best, constant_frequency_scan(scanned, blender))

@@ -26,7 +26,7 @@ __all__ = ["evaluate_group", "heldout_table", "plot_heldout", "summarise"]
 MIN_HEADROOM = 1e-3
 
 
-def evaluate_group(group: SyncGroup, policies: list[str], bound: bool = True) -> dict[str, Any]:
+def evaluate_group(group: SyncGroup, policies: list[str], bound: bool = True, thorough: bool = False) -> dict[str, Any]:
     """One group: r without L2, the bound, and per policy r with L2, the change and the deviations.
 
     Returns
@@ -35,11 +35,12 @@ def evaluate_group(group: SyncGroup, policies: list[str], bound: bool = True) ->
         ``{"name", "n", "graph", "r_without", "r_bound", "results": [...]}`` where ``results`` are
         :func:`run_sync`'s rows plus ``bound_fraction = (r_with − r_without) / (r_bound − r_without)``
         (``None`` without headroom, and ``r_bound`` and every fraction ``None`` with ``bound=False``).
+        ``thorough`` computes the thorough bound (``upper_bound(thorough=True)``, about 3× the CPU).
     """
     result = run_sync(group, policies)
     r_without = result["r_without"]
-    # without the pace start: it would cost as much again
-    r_bound = upper_bound(group, pace=False) if bound else None
+    # without the pace start unless thorough: it would cost as much again
+    r_bound = upper_bound(group, pace=False, thorough=thorough) if bound else None
     headroom = -math.inf if r_bound is None else r_bound - r_without
     for row in result["results"]:
         row["bound_fraction"] = (row["r_with"] - r_without) / headroom if headroom > MIN_HEADROOM else None
@@ -86,6 +87,7 @@ def heldout_table(
     max_duration: float | None = None,
     split: str = "test",
     bound: bool = True,
+    thorough: bool = False,
 ) -> dict[str, Any]:
     """Evaluate ``policies`` (all of :data:`MOTIONS` by default) on ``n_groups`` groups of ``split`` and ``seed``.
 
@@ -110,6 +112,9 @@ def heldout_table(
         policy or its settings without looking at the test split.
     bound : bool
         Compute the bound (its fractions are ``None`` without it; it costs about 17 s of CPU per 100 s group).
+    thorough : bool
+        The thorough bound instead (:func:`~cogblocks.analysis.sync_bound.upper_bound` with ``thorough=True``):
+        the ``pace`` and default policies' references as starts and four sweeps, about 3× the CPU.
 
     Returns
     -------
@@ -131,11 +136,13 @@ def heldout_table(
             raise ValueError(f"max_duration must be positive, got {max_duration}")
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
     if workers == 1:
-        rows = [evaluate_group(group, policies, bound) for group in groups]
+        rows = [evaluate_group(group, policies, bound, thorough) for group in groups]
     else:
         from joblib import Parallel, delayed
 
-        rows = Parallel(n_jobs=workers, backend="loky")(delayed(evaluate_group)(g, policies, bound) for g in groups)
+        rows = Parallel(n_jobs=workers, backend="loky")(
+            delayed(evaluate_group)(g, policies, bound, thorough) for g in groups
+        )
     table: dict[str, Any] = {"n_groups": len(groups), "seed": seed, "policies": summarise(rows, policies)}
     if details:
         table["groups"] = rows

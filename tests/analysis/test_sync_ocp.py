@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
 import pytest
 
+from cogblocks.analysis.sync_bound import upper_bound
 from cogblocks.analysis.sync_ocp import alteration_model, alteration_rollout, resimulate, windowed_control_bound
-from cogblocks.data.groups import SyncGroup
+from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.sim import Simulator
+from cogblocks.sync import GuardedPacingMotion
 from cogblocks.sync.model import DT, BlenderParams, SyncModel, order_parameter
 
 # three participants, far apart in frequency (unlocked): the alteration matters from the first ticks
@@ -66,9 +69,39 @@ def test_bound_beats_brute_force_and_its_starts():
     assert resimulate(GROUP, found["theta_ref"]) == found["r"]
 
 
+def test_default_policy_start_is_its_closed_loop():
+    """``guard=True``: the start is pop_sync's default policy run independently, so the bound is at least its r."""
+    group = dataclasses.replace(TABLE2[1], duration=4.0)
+    ticks = round(group.duration / DT) + 1
+    motion = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+    guard = float(Simulator(pop_sync(group, motion=motion)).run(n_steps=ticks)["r"].mean())
+    without = float(Simulator(pop_sync(group, l2=False)).run(n_steps=ticks)["r"].mean())
+    found = windowed_control_bound(group, pace=False, guard=True, max_iter=5, details=True)
+    assert guard > without + 0.01  # the policy acts within the run: the start is not doing nothing
+    assert found["starts"]["guard"] == pytest.approx(guard, abs=1e-12)
+    assert found["r"] >= guard - 1e-12
+    assert "guard" not in windowed_control_bound(group, pace=False, max_iter=5, details=True)["starts"]
+
+
+def test_further_passes_only_raise_the_whole_run_objective():
+    """Each pass starts from the one before and keeps a move only if the whole run's mean r rises."""
+    group = dataclasses.replace(random_groups(1, "train", 0)[0], duration=5.0)
+    one = windowed_control_bound(group, pace=False, max_iter=10, details=True)
+    three = windowed_control_bound(
+        group, pace=False, max_iter=10, passes=((2.0, 2.0, 0.25), (1.0, 1.0, 0.25)), details=True
+    )
+    assert three["sweeps"][0] == one["sweeps"][0] == one["r_model"]
+    assert np.all(np.diff(three["sweeps"]) >= 0.0) and three["sweeps"][-1] > one["r_model"]
+    assert three["r"] == pytest.approx(three["r_model"], abs=1e-10)  # re-simulated through the blocks
+    assert three["windows"] == one["windows"] + 3 + 6  # 501 ticks: 3 windows of 2 s, 6 of 1 s
+    assert upper_bound(group, max_iter=10, thorough=True) >= three["r"] - 1e-12
+
+
 def test_bad_arguments():
     with pytest.raises(ValueError, match="knot"):
         windowed_control_bound(GROUP, window=0.5, knot=0.3)
+    with pytest.raises(ValueError, match=r"knot \(0.3 s\) must divide window \(1.0 s\)"):
+        windowed_control_bound(GROUP, passes=((1.0, 1.0, 0.3),))
     with pytest.raises(ValueError, match="adjacency must be 3x3"):
         windowed_control_bound(GROUP, adjacency=np.zeros((2, 2)))
     with pytest.raises(ValueError, match="adjacency must be 3x3"):

@@ -9,9 +9,9 @@ from scipy.sparse.csgraph import connected_components
 
 from cogblocks.analysis.sync_bound import constant_frequency_scan, upper_bound
 from cogblocks.cli import main
-from cogblocks.data.groups import SyncGroup, locking_gain, random_groups
+from cogblocks.data.groups import TABLE2, SyncGroup, locking_gain, random_groups
 from cogblocks.diagrams.sync import run_sync
-from cogblocks.experiments.sync_heldout import heldout_table, plot_heldout
+from cogblocks.experiments.sync_heldout import evaluate_group, heldout_table, plot_heldout
 from cogblocks.sync import SyncModel
 from cogblocks.sync.model import order_parameter
 
@@ -152,7 +152,11 @@ def test_cli_random_on_the_validation_split_without_the_bound(capsys):
     assert main([*argv, "--no-bound"]) == 0
     assert "2 random groups (validation split, seed 0)" in capsys.readouterr().out
     assert main(["run", "sync", "--group", "1", "--split", "validation"]) == 2
-    assert "--split, --no-bound and --max-duration apply to --random N only" in capsys.readouterr().err
+    assert (
+        "--split, --no-bound, --thorough-bound and --max-duration apply to --random N only" in capsys.readouterr().err
+    )
+    assert main([*argv, "--no-bound", "--thorough-bound"]) == 2
+    assert "--thorough-bound: not allowed with argument --no-bound" in capsys.readouterr().err
     assert main(["run", "sync", "--random", "1", "--split", "dev"]) == 2
     assert "invalid choice: 'dev'" in capsys.readouterr().err
 
@@ -169,3 +173,17 @@ def test_cli_random_plot_draws_each_groups_change_against_the_bound(capsys, tmp_
     assert "--random evaluates each group over its own duration in the phase domain" in capsys.readouterr().err
     with pytest.raises(ValueError, match="plot_heldout needs heldout_table"):
         plot_heldout({"n_groups": 2, "seed": 0, "policies": []}, str(path))
+
+
+def test_thorough_bound_is_the_tighter_yardstick():
+    """``--thorough-bound`` judges against ``upper_bound(thorough=True)``, never below the default bound."""
+    group = dataclasses.replace(TABLE2[1], duration=3.0)
+    standard = evaluate_group(group, ["guard"])
+    thorough = evaluate_group(group, ["guard"], thorough=True)
+    assert thorough["r_bound"] == upper_bound(group, thorough=True)
+    assert thorough["r_bound"] >= standard["r_bound"] - 1e-12
+    assert thorough["r_bound"] >= thorough["results"][0]["r_with"] - 1e-12  # the default policy is one of its starts
+    (row,) = thorough["results"]
+    assert row["bound_fraction"] == pytest.approx(
+        (row["r_with"] - thorough["r_without"]) / (thorough["r_bound"] - thorough["r_without"])
+    )
