@@ -135,7 +135,7 @@ def policy_starts(
     if pace:
         motions["pace"] = PacingMotion(group.n, group.assisted, adjacency=adjacency, blender=params)
     if guard:  # pop_sync's default, told the run's length as the held-out evaluation tells it
-        motions["guard"] = GuardedPacingMotion(
+        motions["guard"] = GuardedPacingMotion.for_trial(
             group.n, group.assisted, adjacency=adjacency, blender=params, end=duration
         )
     n_steps = round(duration / DT) + 1

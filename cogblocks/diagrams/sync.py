@@ -81,8 +81,8 @@ def _pace_motion(group: SyncGroup) -> Block:
 def _guard_motion(group: SyncGroup) -> Block:
     from cogblocks.sync import GuardedPacingMotion
 
-    # the trial's length is part of the task (mean r over [0, T]), not a model of the group: predictions stop there
-    return GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+    # the trial's length is part of the task (mean r over [0, T]), not a model of the group: predictions run to it
+    return GuardedPacingMotion.for_trial(group.n, group.assisted, adjacency=group.graph, end=group.duration)
 
 
 #: Motion computers available by name: each builds a fresh block for a group.

@@ -32,7 +32,7 @@ from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.pacing import _MODES, MEAN, NONE, PACE, PacingMotion
 from cogblocks.sync.staged import PROGRESS, StagedPrediction
 
-__all__ = ["COMMIT", "EARLY", "HORIZON", "MARGIN", "GuardedPacingMotion", "phase_error"]
+__all__ = ["COMMIT", "EARLY", "HORIZON", "MARGIN", "TRIAL", "GuardedPacingMotion", "phase_error"]
 
 #: Default ``margin``: four times :class:`PacingMotion`'s. Re-tuned on the validation split (the shortest groups of
 #: ``random_groups(600, "validation", 0)``, docs/pop-sync.md "Guarded pacing motion computer"): 0.01 let predicted
@@ -52,6 +52,21 @@ COMMIT = 0
 #: rule declared before the run: pooled, none below -0.5 % (the default without it: 1, seed 3's group 100 at -10.4 %),
 #: 4 lowered, mean +3.52 % (docs/pop-sync.md, "Guarded pacing motion computer").
 EARLY = 10.0
+
+#: What :meth:`GuardedPacingMotion.for_trial` changes when the trial's length is known: each decision predicts every
+#: candidate held to the trial's end (at most 300 s), at the 10 ms tick of the group's own simulation, one decision
+#: every 10 s spread over its period, and no margin or early test (the whole-run prediction is what is scored).
+#: Chosen in session 12 on validation groups 0-199 (docs/pop-sync.md, "A fourth round").
+TRIAL: dict[str, Any] = {
+    "horizon": 300.0,
+    "step": 0.01,
+    "max_steps": 30000,
+    "decide_every": 1000,
+    "first_period": 100,
+    "margin": 0.0,
+    "switch_margin": 0.0,
+    "early": None,
+}
 
 
 def phase_error(predicted: np.ndarray, observed: np.ndarray) -> float:
@@ -145,6 +160,14 @@ class GuardedPacingMotion(PacingMotion):
             self.add_state(f"job_{name}", 0 if name == "done_steps" else None)
         self.job: StagedPrediction | None = None
         self.errors: list[float] = []
+
+    @classmethod
+    def for_trial(cls, n: int, assisted: int, *, end: float, **options: Any) -> GuardedPacingMotion:
+        """The block for a trial of known length ``end`` (s): :data:`TRIAL`'s settings, ``options`` over them.
+
+        What ``pop_sync``'s default policy is (``MOTIONS["guard"]``): the trial's mean r is what it predicts.
+        """
+        return cls(n, assisted, end=end, **(TRIAL | options))
 
     @property
     def max_evaluations(self) -> int:

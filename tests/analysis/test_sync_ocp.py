@@ -73,7 +73,7 @@ def test_default_policy_start_is_its_closed_loop():
     """``guard=True``: the start is pop_sync's default policy run independently, so the bound is at least its r."""
     group = dataclasses.replace(TABLE2[1], duration=4.0)
     ticks = round(group.duration / DT) + 1
-    motion = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+    motion = GuardedPacingMotion.for_trial(group.n, group.assisted, adjacency=group.graph, end=group.duration)
     guard = float(Simulator(pop_sync(group, motion=motion)).run(n_steps=ticks)["r"].mean())
     without = float(Simulator(pop_sync(group, l2=False)).run(n_steps=ticks)["r"].mean())
     found = windowed_control_bound(group, pace=False, guard=True, max_iter=5, details=True)

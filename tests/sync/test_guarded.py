@@ -130,7 +130,8 @@ def test_the_first_decision_comes_after_half_a_period_then_decisions_come_every_
     """Until a check has passed, periods are ``first_period`` ticks: trusted at tick 100, the first decision is checked
     and applied at 150 (not 200), and later ones every 100 ticks; before 150 the participant is left unaltered."""
     group = TABLE2[1]
-    block = MOTIONS["guard"](group)  # as pop_sync builds it: predictions stop at the group's 10 s
+    # the class's own periods (MOTIONS["guard"], for_trial, decides every 10 s): predictions stop at the group's 10 s
+    block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
     assert block.first_period == 50 and block.decide_every == 100 and block.end == group.duration
     starts, record = _start_ticks(block), []
     trace = _closed_loop(group, block, 4.0, record)
@@ -143,6 +144,35 @@ def test_the_first_decision_comes_after_half_a_period_then_decisions_come_every_
     # the first period's decision is spread over 50 ticks: more steps a tick, within max_evaluations
     assert max(record) <= block.max_evaluations
     assert max(record[100:150]) > max(record[150:])
+
+
+def test_the_default_policy_predicts_to_the_trials_end_at_the_groups_own_step():
+    """``MOTIONS["guard"]`` is ``for_trial``: trusted at tick 100, decisions start at 100 (a 1 s first period) and 200
+    (then every 10 s), and each fan-out scores its candidates at 10 ms steps up to the trial's end, not 20 s."""
+    group = TABLE2[2]  # 300 s
+    block = MOTIONS["guard"](group)
+    assert (block.end, block.step, block.decide_every, block.early, block.margin) == (
+        group.duration,
+        0.01,
+        1000,
+        None,
+        0,
+    )
+    jobs = []
+    start = block._start
+
+    def recorded(theta, lam, ref, model, k, dt) -> None:
+        start(theta, lam, ref, model, k, dt)
+        jobs.append((k, block.job.lead_steps, block.job.steps, block.job.step))
+
+    block._start = recorded
+    trace = _closed_loop(group, block, 14.0, [])
+    assert [job[0] for job in jobs] == [100, 200, 1200]
+    for k, lead_steps, steps, step in jobs:
+        lead_ticks = 100 if k == 100 else 1000  # the decision applies one period after it starts
+        assert step == 0.01 and lead_steps == lead_ticks
+        assert steps == round(group.duration / 0.01) - (k + lead_ticks)  # to the end, from the lead's end
+    assert np.abs(np.angle(np.exp(1j * (trace["ref"] - trace["l0"])))).max() > 0.1  # it alters within the 14 s
 
 
 def test_periods_stay_short_while_every_check_fails():
