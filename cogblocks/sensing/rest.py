@@ -67,8 +67,11 @@ class RestGate(Block):
 
     def output(self, k: int) -> None:
         u = self.u.value
-        square = float(np.sum(u * u)) if np.all(np.isfinite(u)) else math.inf
-        rest = square <= self.threshold**2
+        rest = False
+        if np.all(np.isfinite(u)):
+            largest = float(np.max(np.abs(u), initial=0.0))
+            # scaled by the largest component, so that a huge sample does not overflow the squares
+            rest = largest == 0.0 or largest * math.sqrt(float(np.sum((u / largest) ** 2))) <= self.threshold
         self.rest.value[...] = rest
         self.y.value[...] = 0.0 if rest else u
 
