@@ -74,7 +74,7 @@ def pop_amplification(
     front_end: str = "recorded",
     noise_mm: float = 0.0,
     seed: int = 0,
-    smoothing_hz: float | None = SMOOTHING_HZ,
+    smoothing_hz: float | str | None = SMOOTHING_HZ,
 ) -> Diagram:
     """A ready diagram replaying one human movement through the L2 architecture.
 
@@ -106,8 +106,9 @@ def pop_amplification(
         :class:`~cogblocks.sensing.KalmanEstimator` (block ``tracking``) whose position and
         velocity estimates feed the architecture, as on a live motion-capture stream. Without noise
         its frozen-sample detection is off (an exactly repeated resting position is a still hand).
-    smoothing_hz : float or None
-        With ``front_end="kalman"``: the cut-off (Hz) of a low-pass on the estimated velocity (block ``smooth``),
+    smoothing_hz : float, "auto" or None
+        With ``front_end="kalman"``: the cut-off (Hz) of a low-pass on the estimated velocity (block ``smooth``;
+        ``"auto"``: the least smoothing that keeps a still hand's estimate within 12 mm/s, at most 3 Hz),
         followed by a :class:`~cogblocks.sensing.RestGate` (block ``still``) set at the speed a still hand's
         estimate shows at ``noise_mm``, so that the tracker's noise is not emitted and the hand is seen to stop
         (:mod:`cogblocks.diagrams.tracking`); ``None``: the estimate as it is (the front end before session 12).
@@ -197,7 +198,7 @@ def run_amplification(
     e_des: int = 1,
     front_end: str = "recorded",
     noise_mm: float = 0.0,
-    smoothing_hz: float | None = SMOOTHING_HZ,
+    smoothing_hz: float | str | None = SMOOTHING_HZ,
     setup: AmplificationSetup | None = None,
     judges: Judges | None = None,
     blender_networks: Sequence[EncoderNet] | None = None,

@@ -7,7 +7,8 @@ Usage::
         [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
         [--solve-ticks N] [--time-limit-ms T] [--realism R] [--components C] [--emit E] [--margin M]
         [--removal-margin M] [--guard-rest 0|1] [--guard-margin G] [--gradient stacked|blocks] [--predict-setup 0|1]
-        [--neighbours K] [--terminal-margin MM] [--front-end recorded|kalman] [--noise-mm MM] [--smoothing-hz HZ|none]
+        [--neighbours K] [--terminal-margin MM] [--front-end recorded|kalman] [--noise-mm MM]
+        [--smoothing-hz HZ|auto|none]
     python -m cogblocks.experiments.amplification_fresh --library-seed 3000 --real
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
@@ -25,7 +26,7 @@ replace the constrained networks, ``--solve-ticks``, ``--time-limit-ms``, ``--re
 ``amplification_inner``'s), to try a setting on a *validation* library (a seed declared as such before it is looked
 at); without them the chain is the shipped one. ``--front-end kalman`` (with ``--noise-mm``) feeds the architecture
 the Kalman estimator's tracking of the positions instead of the recorded velocity, as on a live stream;
-``--smoothing-hz`` sets its velocity's low-pass (``none``: the estimate as it is).
+``--smoothing-hz`` sets its velocity's low-pass (``auto``: chosen from the noise; ``none``: the estimate as it is).
 ``--real`` prints instead what the shipped judges decide on the library's *real* movements
 (:func:`real_shares`): how often the ensemble judge calls a real movement of ``e_des`` so, the scale of its
 share on the altered ones.
@@ -97,7 +98,7 @@ def run_fresh(
     optimised: Mapping[str, Any] | None = None,
     front_end: str = "recorded",
     noise_mm: float = 0.0,
-    smoothing_hz: float | None = SMOOTHING_HZ,
+    smoothing_hz: float | str | None = SMOOTHING_HZ,
 ) -> dict[str, Any]:
     """Both directions on the fresh movements, keyed as ``cogblocks run amplification --json``.
 
@@ -148,14 +149,14 @@ def real_shares(library_seed: int, humans: ReachLibrary | None = None) -> dict[s
     return rows
 
 
-def _cutoff(text: str) -> float | None:
-    """``--smoothing-hz``: a cut-off in Hz, or ``none``."""
-    if text.lower() == "none":
-        return None
+def _cutoff(text: str) -> float | str | None:
+    """``--smoothing-hz``: a cut-off in Hz, ``auto`` or ``none``."""
+    if text.lower() in ("none", "auto"):
+        return None if text.lower() == "none" else "auto"
     try:
         return float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"a cut-off in Hz or 'none', got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"a cut-off in Hz, 'auto' or 'none', got {text!r}") from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -191,8 +192,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--front-end", default="recorded", choices=("recorded", "kalman"), help="default recorded")
     parser.add_argument("--noise-mm", type=float, default=0.0, help="with --front-end kalman: position noise, mm")
     parser.add_argument(
-        "--smoothing-hz", type=_cutoff, default=SMOOTHING_HZ, metavar="HZ|none",
-        help=f"with --front-end kalman: low-pass cut-off of the velocity estimate (default {SMOOTHING_HZ}; none: off)",
+        "--smoothing-hz", type=_cutoff, default=SMOOTHING_HZ, metavar="HZ|auto|none",
+        help=f"with --front-end kalman: the velocity estimate's low-pass cut-off (default {SMOOTHING_HZ}; none: off)",
     )  # fmt: skip
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)

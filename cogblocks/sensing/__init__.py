@@ -2,6 +2,6 @@
 
 from cogblocks.sensing.kalman import KalmanEstimator, fit_noise
 from cogblocks.sensing.l1 import L1, KinematicPredictor
-from cogblocks.sensing.rest import RestGate, rest_speed_bound
+from cogblocks.sensing.rest import RestGate, rest_cutoff, rest_speed_bound
 
-__all__ = ["L1", "KalmanEstimator", "KinematicPredictor", "RestGate", "fit_noise", "rest_speed_bound"]
+__all__ = ["L1", "KalmanEstimator", "KinematicPredictor", "RestGate", "fit_noise", "rest_cutoff", "rest_speed_bound"]

@@ -5,15 +5,18 @@ block downstream that decides "at rest" at a small speed (the amplification arch
 then never sees the hand stop. :class:`RestGate` outputs zero for a velocity whose speed is at or
 below a threshold; :func:`rest_speed_bound` gives the speed that a still hand's estimate stays below
 with a chosen probability, for a :class:`~cogblocks.sensing.KalmanEstimator` followed by a
-Butterworth low-pass (:class:`~cogblocks.blocks.LowPass`), as a threshold for the gate.
+Butterworth low-pass (:class:`~cogblocks.blocks.LowPass`), as a threshold for the gate, and
+:func:`rest_cutoff` the least smoothing that keeps that speed within a bound.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import scipy.linalg
+import scipy.optimize
 import scipy.signal
 import scipy.stats
 from filterpy.common import Q_continuous_white_noise
@@ -22,7 +25,7 @@ from cogblocks.sensing.kalman import _DEFAULT_PROCESS_NOISE, _ORDER, MODELS
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
-__all__ = ["RestGate", "rest_speed_bound"]
+__all__ = ["RestGate", "rest_cutoff", "rest_speed_bound"]
 
 # Samples of the impulse response summed for the noise gain: the slowest pole of the filters it is used with
 # (a 0.5 Hz low-pass at 100 Hz) has decayed by many orders of magnitude by then.
@@ -153,3 +156,45 @@ def rest_speed_bound(
         response = scipy.signal.sosfilt(scipy.signal.butter(order, cutoff, fs=1.0 / dt, output="sos"), response)
     spread = noise * float(np.sqrt(np.sum(response**2)))
     return spread * math.sqrt(float(scipy.stats.chi2.ppf(quantile, dims)))
+
+
+def rest_cutoff(
+    noise: float,
+    bound: float,
+    *,
+    highest: float,
+    lowest: float = 0.1,
+    dt: float = 0.01,
+    **options: Any,
+) -> float:
+    """The highest low-pass cut-off (Hz, at most ``highest``) at which :func:`rest_speed_bound` is at most ``bound``.
+
+    The least smoothing, hence the least lag, that keeps a still hand's smoothed estimate at or below ``bound``
+    (with the probability ``quantile`` of ``options``). The bound rises with the cut-off, so the cut-off is the
+    root of ``rest_speed_bound(noise, f) = bound`` (Brent's method), clipped to ``[lowest, highest]``: ``highest``
+    when even that is quiet enough (no noise, for one), ``lowest`` when nothing above it is.
+
+    Parameters
+    ----------
+    noise, dt, **options
+        As :func:`rest_speed_bound` (``options``: ``order``, ``model``, ``process_noise``, ``measurement_noise``,
+        ``dims``, ``quantile``).
+    bound : float
+        The speed (position unit per second) a still hand's estimate may show (> 0).
+    highest, lowest : float
+        The range of cut-offs (Hz), ``0 < lowest <= highest < 1 / (2 dt)``.
+    """
+    name = "rest_cutoff"
+    bound = finite_number(name, "bound", bound, low=0.0, low_open=True)
+    dt = finite_number(name, "dt", dt, low=0.0, low_open=True)
+    highest = finite_number(name, "highest", highest, low=0.0, high=0.5 / dt, low_open=True, high_open=True)
+    lowest = finite_number(name, "lowest", lowest, low=0.0, high=highest, low_open=True)
+
+    def excess(cutoff: float) -> float:
+        return rest_speed_bound(noise, cutoff, dt=dt, **options) - bound
+
+    if excess(highest) <= 0.0:
+        return highest
+    if excess(lowest) >= 0.0:
+        return lowest
+    return float(scipy.optimize.brentq(excess, lowest, highest, xtol=1e-6))

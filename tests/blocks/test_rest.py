@@ -8,7 +8,7 @@ import pytest
 import scipy.stats
 
 from cogblocks.blocks import LowPass, Playback, Probe
-from cogblocks.sensing import KalmanEstimator, RestGate, rest_speed_bound
+from cogblocks.sensing import KalmanEstimator, RestGate, rest_cutoff, rest_speed_bound
 from cogblocks.sim import Diagram, Signal, Simulator
 
 
@@ -97,3 +97,29 @@ def test_the_gate_passes_a_non_finite_sample():
     compiled = d.compile()
     out = compiled.step(u=np.array([np.nan, 0.0, 0.0]))
     assert np.isnan(out["y"][0]) and not out["rest"]
+
+
+def test_the_cut_off_is_the_least_smoothing_within_the_bound():
+    cutoff = rest_cutoff(1.0, 12.0, highest=3.0)
+    assert 0.1 < cutoff < 3.0
+    assert rest_speed_bound(1.0, cutoff) == pytest.approx(12.0, rel=1e-4)
+    assert rest_speed_bound(1.0, cutoff * 1.05) > 12.0  # any less smoothing shows more than the bound
+    # clipped: no noise (or little) needs no more smoothing than the highest cut-off, much noise the lowest
+    assert rest_cutoff(0.0, 12.0, highest=3.0, measurement_noise=0.1) == 3.0
+    assert rest_cutoff(0.3, 12.0, highest=3.0) == 3.0
+    assert rest_cutoff(100.0, 12.0, highest=3.0, lowest=0.5) == 0.5
+    # more noise, more smoothing
+    assert rest_cutoff(2.0, 12.0, highest=3.0) < cutoff
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"bound": 0.0, "highest": 3.0}, "bound must be a finite number in (0.0, inf), got 0.0"),
+        ({"bound": 12.0, "highest": 60.0}, "highest must be a finite number in (0.0, 50.0), got 60.0"),
+        ({"bound": 12.0, "highest": 3.0, "lowest": 4.0}, "lowest must be a finite number in (0.0, 3.0], got 4.0"),
+    ],
+)
+def test_the_cut_off_refuses_bad_arguments(kwargs, message):
+    with pytest.raises(ValueError, match=re.escape(f"rest_cutoff: {message}")):
+        rest_cutoff(1.0, **kwargs)

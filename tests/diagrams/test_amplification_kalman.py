@@ -8,6 +8,8 @@ import pytest
 
 from cogblocks.amplification.judges import FEATURES, kinematic_features
 from cogblocks.diagrams.amplification import SMOOTHING_HZ, amplification_setup, pop_amplification, run_amplification
+from cogblocks.diagrams.tracking import AUTO_HIGHEST_HZ, AUTO_REST_BOUND, REST_QUANTILE
+from cogblocks.sensing import rest_speed_bound
 from cogblocks.sim import Simulator
 
 
@@ -93,8 +95,28 @@ def test_the_smoothed_front_end_emits_a_movement_as_smooth_as_the_recorded_one(n
 def test_the_smoothing_option_is_checked(value, shown):
     setup = amplification_setup(None, 1)
     movement = (setup.library.velocity[0], setup.library.position[0])
-    message = f"pop_amplification: smoothing_hz must be a finite number in (0.0, 50.0), got {shown}"
+    message = f"pop_amplification: smoothing_hz must be a finite number in (0.0, 50.0), 'auto' or None, got {shown}"
     with pytest.raises(ValueError, match=re.escape(message)):
         pop_amplification(
             movement, setup.movements, table=setup.table, encoder=setup.encoder, front_end="kalman", smoothing_hz=value
         )
+
+
+def test_auto_smoothing_follows_the_tracker_s_noise():
+    setup = amplification_setup(None, 1)
+    movement = (setup.library.velocity[0], setup.library.position[0])
+    blocks = {}
+    for noise in (0.0, 0.3, 1.0, 2.0):
+        d = pop_amplification(
+            movement, setup.movements, table=setup.table, encoder=setup.encoder, front_end="kalman",
+            noise_mm=noise, smoothing_hz="auto",
+        )  # fmt: skip
+        blocks[noise] = (d["smooth"].cutoff, d["still"].threshold)
+    # a quiet tracker keeps the highest cut-off; a noisy one is smoothed until a still hand shows the bound
+    assert blocks[0.0] == (AUTO_HIGHEST_HZ, 0.0)
+    assert blocks[0.3][0] == AUTO_HIGHEST_HZ and blocks[0.3][1] < AUTO_REST_BOUND
+    for noise in (1.0, 2.0):
+        cutoff, threshold = blocks[noise]
+        assert cutoff < AUTO_HIGHEST_HZ and threshold == pytest.approx(AUTO_REST_BOUND, rel=1e-4)
+        assert threshold == rest_speed_bound(noise, cutoff, measurement_noise=noise, quantile=REST_QUANTILE)
+    assert blocks[2.0][0] < blocks[1.0][0]

@@ -180,9 +180,9 @@ def test_command_passes_the_smoothing(monkeypatch, capsys):
 
     calls = []
     monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
-    for given in (["--smoothing-hz", "5"], ["--smoothing-hz", "none"], []):
+    for given in (["--smoothing-hz", "5"], ["--smoothing-hz", "none"], ["--smoothing-hz", "auto"], []):
         assert main(["--json", "--front-end", "kalman", *given]) == 0
-    assert [c["smoothing_hz"] for c in calls] == [5.0, None, SMOOTHING_HZ]
+    assert [c["smoothing_hz"] for c in calls] == [5.0, None, "auto", SMOOTHING_HZ]
     with pytest.raises(SystemExit):
         main(["--json", "--smoothing-hz", "fast"])
-    assert "a cut-off in Hz or 'none', got 'fast'" in capsys.readouterr().err
+    assert "a cut-off in Hz, 'auto' or 'none', got 'fast'" in capsys.readouterr().err
