@@ -33,9 +33,9 @@ __all__ = [
     "smoothing_cutoff",
 ]
 
-#: Cut-off (Hz) of the low-pass on the Kalman front end's velocity, chosen on validation libraries
-#: (docs/pop-amplification.md, "On a live tracker").
-SMOOTHING_HZ = 3.0
+#: The low-pass on the Kalman front end's velocity: ``"auto"`` (:func:`smoothing_cutoff`), chosen on validation
+#: libraries 3018-3020 over fixed cut-offs of 2, 3 and 5 Hz (docs/pop-amplification.md, "On a live tracker").
+SMOOTHING_HZ: float | str | None = "auto"
 #: Probability with which a still hand's smoothed velocity estimate stays at or below the rest gate's threshold.
 REST_QUANTILE = 0.999
 #: ``smoothing_hz="auto"``: the least smoothing, at most this cut-off (Hz), that keeps a still hand's smoothed
