@@ -27,9 +27,10 @@ from cogblocks.sim.params import finite_number, one_of, positive_int
 
 __all__ = ["RestGate", "rest_cutoff", "rest_speed_bound"]
 
-# Samples of the impulse response summed for the noise gain: the slowest pole of the filters it is used with
-# (a 0.5 Hz low-pass at 100 Hz) has decayed by many orders of magnitude by then.
+# Samples of the impulse response summed for the noise gain, at least, and per time constant of the low-pass (about
+# 1/(2π f) s): after 40 time constants the response has decayed by more than e^-40.
 _IMPULSE_SAMPLES = 4000
+_TIME_CONSTANTS = 40.0
 
 
 class RestGate(Block):
@@ -148,8 +149,9 @@ def rest_speed_bound(
     prior = scipy.linalg.solve_discrete_are(f.T, h.T, Q_continuous_white_noise(m, dt, q), np.array([[r * r]]))
     gain = prior @ h.T / (prior[0, 0] + r * r)  # H P Hᵀ is the position variance
     a = (np.eye(m) - gain @ h) @ f
-    state, response = gain[:, 0].copy(), np.empty(_IMPULSE_SAMPLES)
-    for k in range(_IMPULSE_SAMPLES):
+    samples = _IMPULSE_SAMPLES if cutoff is None else max(_IMPULSE_SAMPLES, math.ceil(_TIME_CONSTANTS / (2 * math.pi * cutoff * dt)))
+    state, response = gain[:, 0].copy(), np.empty(samples)
+    for k in range(samples):
         response[k] = state[1]  # the velocity estimate's response to a unit measurement at step 0
         state = a @ state
     if cutoff is not None:
