@@ -149,7 +149,9 @@ def rest_speed_bound(
     prior = scipy.linalg.solve_discrete_are(f.T, h.T, Q_continuous_white_noise(m, dt, q), np.array([[r * r]]))
     gain = prior @ h.T / (prior[0, 0] + r * r)  # H P Hᵀ is the position variance
     a = (np.eye(m) - gain @ h) @ f
-    samples = _IMPULSE_SAMPLES if cutoff is None else max(_IMPULSE_SAMPLES, math.ceil(_TIME_CONSTANTS / (2 * math.pi * cutoff * dt)))
+    samples = _IMPULSE_SAMPLES
+    if cutoff is not None:
+        samples = max(samples, math.ceil(_TIME_CONSTANTS / (2.0 * math.pi * cutoff * dt)))
     state, response = gain[:, 0].copy(), np.empty(samples)
     for k in range(samples):
         response[k] = state[1]  # the velocity estimate's response to a unit measurement at step 0
