@@ -86,10 +86,12 @@ def test_the_smoothed_front_end_emits_a_movement_as_smooth_as_the_recorded_one(n
                 kinematic_features(emitted, setup.library.dt)[FEATURES.index("log_mean_jerk")]
             )
     recorded, smoothed, raw = (np.array(jerk[name]) for name in ("recorded", "smoothed", "raw"))
-    # the tracker's noise made the emitted movement's jerk several times the recorded one's (log: +1 or more)
-    assert np.all(raw > recorded + 1.0)
+    # the tracker's noise makes the emitted movement rougher than the recorded one (log 0.5: a mean jerk 1.6 times)
+    assert np.all(raw > recorded + 0.5)
+    # smoothed, it is less rough and closer to the recorded one, within that factor
+    assert np.all(smoothed < raw)
     assert np.all(np.abs(smoothed - recorded) < np.abs(raw - recorded))
-    assert np.all(smoothed < raw - 1.0)
+    assert np.all(np.abs(smoothed - recorded) < 0.5)
 
 
 @pytest.mark.parametrize(("value", "shown"), [(0.0, "0.0"), (50.0, "50.0"), (math.nan, "nan"), ("fast", "'fast'")])
