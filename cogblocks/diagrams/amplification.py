@@ -37,13 +37,14 @@ from cogblocks.diagrams.amplification_setup import (
     optimised_subspace,
 )
 from cogblocks.diagrams.amplification_setup import blender_networks as shipped_blender_networks
-from cogblocks.sensing import KalmanEstimator
+from cogblocks.diagrams.tracking import SMOOTHING_HZ, add_kalman_front_end, checked_cutoff
 from cogblocks.sim import Block, Diagram, Simulator, Trace
 from cogblocks.sim.params import finite_number, one_of
 
 __all__ = [
     "AmplificationSetup",
     "PAPER",
+    "SMOOTHING_HZ",
     "amplification_judges",
     "amplification_setup",
     "plot_amplification",
@@ -73,6 +74,7 @@ def pop_amplification(
     front_end: str = "recorded",
     noise_mm: float = 0.0,
     seed: int = 0,
+    smoothing_hz: float | str | None = SMOOTHING_HZ,
 ) -> Diagram:
     """A ready diagram replaying one human movement through the L2 architecture.
 
@@ -104,6 +106,12 @@ def pop_amplification(
         :class:`~cogblocks.sensing.KalmanEstimator` (block ``tracking``) whose position and
         velocity estimates feed the architecture, as on a live motion-capture stream. Without noise
         its frozen-sample detection is off (an exactly repeated resting position is a still hand).
+    smoothing_hz : float, "auto" or None
+        With ``front_end="kalman"``: the cut-off (Hz) of a low-pass on the estimated velocity (block ``smooth``;
+        ``"auto"``: the least smoothing that keeps a still hand's estimate within 12 mm/s, at most 3 Hz),
+        followed by a :class:`~cogblocks.sensing.RestGate` (block ``still``) set at the speed a still hand's
+        estimate shows at ``noise_mm``, so that the tracker's noise is not emitted and the hand is seen to stop
+        (:mod:`cogblocks.diagrams.tracking`); ``None``: the estimate as it is (the front end before session 12).
     """
     one_of("pop_amplification", "front_end", front_end, ("recorded", "kalman"))
     noise_mm = finite_number("pop_amplification", "noise_mm", noise_mm, low=0.0)
@@ -119,6 +127,7 @@ def pop_amplification(
         encoder = setup.encoder if encoder is None else encoder
     encoder = load_encoder() if encoder is None else encoder
     table = solution_table(encoder, library, e_des) if table is None else table
+    smoothing_hz = checked_cutoff("pop_amplification", smoothing_hz, library.dt)
     d = Diagram()
     human_v = d.add("human_v", Playback(velocity, unit="mm/s", at_end="zero"))
     human_p = d.add("human_p", Playback(position, unit="mm", at_end="hold"))
@@ -129,16 +138,9 @@ def pop_amplification(
     altered = d.add("altered", Buffer(library.max_len))
     classifier = d.add("encoder", EncoderClassifier(encoder))
     if front_end == "kalman":
-        noise = np.random.default_rng(seed).normal(scale=noise_mm, size=position.shape) if noise_mm else 0.0
-        tracked = d.add("tracked", Playback(position + noise, unit="mm", at_end="hold"))
-        # noise-free replays repeat the resting position exactly: that is a still hand, not a frozen tracker
-        freeze = 2 if noise_mm > 0 else None
-        tracking = d.add(
-            "tracking", KalmanEstimator(model="ca", measurement_noise=max(noise_mm, 0.1), freeze_frames=freeze)
-        )
-        d.connect(tracked.y, tracking.p)
-        d.connect(tracking.v_hat, l2.v_h)
-        d.connect(tracking.p_hat, l2.p_h)
+        p_hat, v_hat = add_kalman_front_end(d, position, noise_mm, seed, smoothing_hz, library.dt)
+        d.connect(v_hat, l2.v_h)
+        d.connect(p_hat, l2.p_h)
     else:
         d.connect(human_v.y, l2.v_h)
         d.connect(human_p.y, l2.p_h)
@@ -196,6 +198,7 @@ def run_amplification(
     e_des: int = 1,
     front_end: str = "recorded",
     noise_mm: float = 0.0,
+    smoothing_hz: float | str | None = SMOOTHING_HZ,
     setup: AmplificationSetup | None = None,
     judges: Judges | None = None,
     blender_networks: Sequence[EncoderNet] | None = None,
@@ -221,7 +224,7 @@ def run_amplification(
         Replay only the first ``limit`` movements (smoke tests).
     e_des : {0, 1}
         1: make no-fear movements encode fear; 0: remove fear from fear movements.
-    front_end, noise_mm : see :func:`pop_amplification` (movement ``i`` uses noise seed ``i``).
+    front_end, noise_mm, smoothing_hz : see :func:`pop_amplification` (movement ``i`` uses noise seed ``i``).
     setup : AmplificationSetup, optional
         Another library, split, encoder and w̃ (:func:`cogblocks.training.pipeline.run_pipeline`);
         then ``judges`` and ``blender_networks`` must be given too.
@@ -285,6 +288,7 @@ def run_amplification(
                 front_end=front_end,
                 noise_mm=noise_mm,
                 seed=int(index),
+                smoothing_hz=smoothing_hz,
             )
             trace = Simulator(d, probes={"decision": "encoder.decision"}).run(n_steps=n_steps)
             encoded.append(int(trace["decision"][-1]) == e_des)

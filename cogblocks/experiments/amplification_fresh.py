@@ -8,6 +8,7 @@ Usage::
         [--solve-ticks N] [--time-limit-ms T] [--realism R] [--components C] [--emit E] [--margin M]
         [--removal-margin M] [--guard-rest 0|1] [--guard-margin G] [--gradient stacked|blocks] [--predict-setup 0|1]
         [--neighbours K] [--terminal-margin MM] [--front-end recorded|kalman] [--noise-mm MM]
+        [--smoothing-hz HZ|auto|none]
     python -m cogblocks.experiments.amplification_fresh --library-seed 3000 --real
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
@@ -24,7 +25,8 @@ replace the constrained networks, ``--solve-ticks``, ``--time-limit-ms``, ``--re
 ``--predict-setup``, ``--neighbours`` and ``--terminal-margin`` the optimised blender's settings (as
 ``amplification_inner``'s), to try a setting on a *validation* library (a seed declared as such before it is looked
 at); without them the chain is the shipped one. ``--front-end kalman`` (with ``--noise-mm``) feeds the architecture
-the Kalman estimator's tracking of the positions instead of the recorded velocity, as on a live stream.
+the Kalman estimator's tracking of the positions instead of the recorded velocity, as on a live stream;
+``--smoothing-hz`` sets its velocity's low-pass (``auto``: chosen from the noise; ``none``: the estimate as it is).
 ``--real`` prints instead what the shipped judges decide on the library's *real* movements
 (:func:`real_shares`): how often the ensemble judge calls a real movement of ``e_des`` so, the scale of its
 share on the altered ones.
@@ -46,7 +48,7 @@ from cogblocks.amplification.encoder import FEAR, NO_FEAR
 from cogblocks.amplification.linearised import GRADIENTS
 from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
-from cogblocks.diagrams.amplification import run_amplification
+from cogblocks.diagrams.amplification import SMOOTHING_HZ, run_amplification
 from cogblocks.diagrams.amplification_setup import (
     OPTIMISED,
     AmplificationSetup,
@@ -96,6 +98,7 @@ def run_fresh(
     optimised: Mapping[str, Any] | None = None,
     front_end: str = "recorded",
     noise_mm: float = 0.0,
+    smoothing_hz: float | str | None = SMOOTHING_HZ,
 ) -> dict[str, Any]:
     """Both directions on the fresh movements, keyed as ``cogblocks run amplification --json``.
 
@@ -105,7 +108,8 @@ def run_fresh(
     ``optimised`` some of :data:`OPTIMISED` (``components``: the realism subspace's, computed on the shipped training
     part), to try a setting on a validation library; by default the chain is the shipped one. ``front_end`` and
     ``noise_mm`` are :func:`~cogblocks.diagrams.amplification.pop_amplification`'s: ``"kalman"`` replays the tracked
-    positions, with that much noise, through the Kalman estimator, as on a live motion-capture stream.
+    positions, with that much noise, through the Kalman estimator, as on a live motion-capture stream, its velocity
+    smoothed at ``smoothing_hz`` (None: not smoothed) and gated at rest.
     """
     ensembles = blender_ensembles(kinematic_weights) if kinematic_weights else None
     settings = {**OPTIMISED, **(optimised or {})}
@@ -121,7 +125,7 @@ def run_fresh(
         result = run_amplification(
             variants, limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
             blender_networks=blender_networks(setup.encoder, **(members or {}), ensembles=ensembles),
-            optimised=settings, front_end=front_end, noise_mm=noise_mm,
+            optimised=settings, front_end=front_end, noise_mm=noise_mm, smoothing_hz=smoothing_hz,
         )  # fmt: skip
         rows.update(result) if e_des == 1 else rows.update(e_des_0=result)
     return rows
@@ -143,6 +147,16 @@ def real_shares(library_seed: int, humans: ReachLibrary | None = None) -> dict[s
             for judge, d in decisions.items()
         }
     return rows
+
+
+def _cutoff(text: str) -> float | str | None:
+    """``--smoothing-hz``: a cut-off in Hz, ``auto`` or ``none``."""
+    if text.lower() in ("none", "auto"):
+        return None if text.lower() == "none" else "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a cut-off in Hz, 'auto' or 'none', got {text!r}") from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -177,6 +191,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--terminal-margin", type=float, default=OPTIMISED.get("terminal_margin", 5.0), help="mm")
     parser.add_argument("--front-end", default="recorded", choices=("recorded", "kalman"), help="default recorded")
     parser.add_argument("--noise-mm", type=float, default=0.0, help="with --front-end kalman: position noise, mm")
+    parser.add_argument(
+        "--smoothing-hz", type=_cutoff, default=SMOOTHING_HZ, metavar="HZ|auto|none",
+        help=f"with --front-end kalman: the velocity estimate's low-pass cut-off (default {SMOOTHING_HZ}; none: off)",
+    )  # fmt: skip
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
@@ -191,7 +209,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     members = {name: count for name, count in given.items() if count is not None}
     rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des,
                      members=members, kinematic_weights=args.kinematic_weights, optimised=optimised,
-                     front_end=args.front_end, noise_mm=args.noise_mm)  # fmt: skip
+                     front_end=args.front_end, noise_mm=args.noise_mm, smoothing_hz=args.smoothing_hz)  # fmt: skip
     if args.json:
         print(json.dumps(rows))
         return 0

@@ -8,7 +8,7 @@ import torch
 
 from cogblocks.amplification import NoCorrection
 from cogblocks.data.reach import generate_reach_library
-from cogblocks.diagrams.amplification import amplification_setup, pop_amplification
+from cogblocks.diagrams.amplification import SMOOTHING_HZ, amplification_setup, pop_amplification
 from cogblocks.diagrams.amplification_setup import OPTIMISED, amplification_judges
 from cogblocks.experiments.amplification_fresh import FRESH_SEED, fresh_setup, main, real_shares, run_fresh
 from cogblocks.sim import Simulator
@@ -173,3 +173,16 @@ def test_a_kalman_front_end_reaches_the_replays():
     ]
     assert rows[0]["n"] == rows[1]["n"] == 1
     assert rows[0]["final_distance_mm"] != rows[1]["final_distance_mm"]
+
+
+def test_command_passes_the_smoothing(monkeypatch, capsys):
+    import cogblocks.experiments.amplification_fresh as fresh
+
+    calls = []
+    monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
+    for given in (["--smoothing-hz", "5"], ["--smoothing-hz", "none"], ["--smoothing-hz", "auto"], []):
+        assert main(["--json", "--front-end", "kalman", *given]) == 0
+    assert [c["smoothing_hz"] for c in calls] == [5.0, None, "auto", SMOOTHING_HZ]
+    with pytest.raises(SystemExit):
+        main(["--json", "--smoothing-hz", "fast"])
+    assert "a cut-off in Hz, 'auto' or 'none', got 'fast'" in capsys.readouterr().err

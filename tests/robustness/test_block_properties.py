@@ -65,7 +65,7 @@ from cogblocks.phase import (
     PhasePositionComputer,
     ReferenceCustomizer,
 )
-from cogblocks.sensing import L1, KalmanEstimator, KinematicPredictor
+from cogblocks.sensing import L1, KalmanEstimator, KinematicPredictor, RestGate
 from cogblocks.sim import Diagram, Signal, SimulationError
 from cogblocks.sync import (
     ArmPositions,
@@ -852,6 +852,14 @@ register(
     # "before any usable sample the outputs are NaN" (beyond 1e9 is missing, like NaN); missing, frozen and
     # rejected frames are predicted
     Policy(nonfinite={out: until_usable("p") for out in ("p_hat", "v_hat", "a_hat")}, check=check_kalman),
+)
+register(
+    RestGate,
+    generic(st.builds(RestGate, st.floats(0.0, 200.0))),
+    lambda b: {"u": floats(b.test_shape, "mm/s")},
+    ["u"],
+    # "a sample with a non-finite element passes unchanged"
+    PASSES,
 )
 register(
     L1,

@@ -82,6 +82,7 @@ BASES: dict[str, Callable[[], dict[str, Any]]] = {
     "Gain": lambda: {"k": 2.0},
     "Saturation": lambda: {"lower": -1.0, "upper": 1.0},
     "LowPass": lambda: {"cutoff": 5.0},
+    "RestGate": lambda: {"threshold": 5.0},
     "Function": lambda: {"fn": abs, "inputs": {"u": Signal()}, "outputs": Signal()},
     "Playback": lambda: {"data": [1.0, 2.0]},
     "Mux": lambda: {"n": 2},
@@ -300,6 +301,9 @@ CASES = [
     case("KalmanEstimator", "gate", 1.0, "(0.0, 1.0)"),
     case("KalmanEstimator", "max_rejections", 0, "integer >= 1"),
     case("KalmanEstimator", "freeze_frames", 0, "integer >= 1"),
+    case("RestGate", "threshold", -1.0, "[0.0, inf)"),
+    case("RestGate", "threshold", math.nan, "finite number"),
+    case("RestGate", "unit", "", "non-empty string"),
     case("L1", "delay", -0.1, "[0.0, inf)"),
     case(
         "L1",
