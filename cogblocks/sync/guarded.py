@@ -32,7 +32,17 @@ from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.pacing import _MODES, MEAN, NONE, PACE, PacingMotion
 from cogblocks.sync.staged import PROGRESS, StagedPrediction
 
-__all__ = ["COMMIT", "EARLY", "HORIZON", "MARGIN", "TRIAL", "GuardedPacingMotion", "phase_error"]
+__all__ = [
+    "COMMIT",
+    "EARLY",
+    "FIRST_PERIOD",
+    "FIRST_STEPS_PER_TICK",
+    "HORIZON",
+    "MARGIN",
+    "TRIAL",
+    "GuardedPacingMotion",
+    "phase_error",
+]
 
 #: Default ``margin``: four times :class:`PacingMotion`'s. Re-tuned on the validation split (the shortest groups of
 #: ``random_groups(600, "validation", 0)``, docs/pop-sync.md "Guarded pacing motion computer"): 0.01 let predicted
@@ -56,17 +66,20 @@ EARLY = 10.0
 #: What :meth:`GuardedPacingMotion.for_trial` changes when the trial's length is known: each decision predicts every
 #: candidate held to the trial's end (at most 300 s), at the 10 ms tick of the group's own simulation, one decision
 #: every 10 s spread over its period, and no margin or early test (the whole-run prediction is what is scored).
-#: Chosen in session 12 on validation groups 0-199 (docs/pop-sync.md, "A fourth round").
+#: Chosen in session 12 on validation groups 0-199 (docs/pop-sync.md, "A fourth round"). The first period is
+#: :data:`FIRST_PERIOD` ticks, longer on a long trial so that the first decision's fan-out to the end costs at most
+#: :data:`FIRST_STEPS_PER_TICK` Euler steps a tick (a 300 s trial: 300 ticks, not 300 steps a tick).
 TRIAL: dict[str, Any] = {
     "horizon": 300.0,
     "step": 0.01,
     "max_steps": 30000,
     "decide_every": 1000,
-    "first_period": 100,
     "margin": 0.0,
     "switch_margin": 0.0,
     "early": None,
 }
+FIRST_PERIOD = 100
+FIRST_STEPS_PER_TICK = 100
 
 
 def phase_error(predicted: np.ndarray, observed: np.ndarray) -> float:
@@ -165,9 +178,15 @@ class GuardedPacingMotion(PacingMotion):
     def for_trial(cls, n: int, assisted: int, *, end: float, **options: Any) -> GuardedPacingMotion:
         """The block for a trial of known length ``end`` (s): :data:`TRIAL`'s settings, ``options`` over them.
 
-        What ``pop_sync``'s default policy is (``MOTIONS["guard"]``): the trial's mean r is what it predicts.
+        What ``pop_sync``'s default policy is (``MOTIONS["guard"]``): the trial's mean r is what it predicts. Unless
+        ``options`` set it, ``first_period`` is :data:`FIRST_PERIOD`, or longer where the first fan-out to the end
+        would otherwise take more than :data:`FIRST_STEPS_PER_TICK` Euler steps a tick.
         """
-        return cls(n, assisted, end=end, **(TRIAL | options))
+        settings = TRIAL | options
+        if "first_period" not in options:  # the first decision's fan-out to the end, spread at a bounded cost a tick
+            steps = min(settings["max_steps"], round(min(settings["horizon"], end) / settings["step"]))
+            settings["first_period"] = max(FIRST_PERIOD, math.ceil(steps / FIRST_STEPS_PER_TICK))
+        return cls(n, assisted, end=end, **settings)
 
     @property
     def max_evaluations(self) -> int:

@@ -71,7 +71,7 @@ def test_bound_beats_brute_force_and_its_starts():
 
 def test_default_policy_start_is_its_closed_loop():
     """``guard=True``: the start is pop_sync's default policy run independently, so the bound is at least its r."""
-    group = dataclasses.replace(TABLE2[1], duration=4.0)
+    group = dataclasses.replace(TABLE2[1], duration=8.0)  # its first decision applies at 4 s
     ticks = round(group.duration / DT) + 1
     motion = GuardedPacingMotion.for_trial(group.n, group.assisted, adjacency=group.graph, end=group.duration)
     guard = float(Simulator(pop_sync(group, motion=motion)).run(n_steps=ticks)["r"].mean())

@@ -147,7 +147,7 @@ def test_the_first_decision_comes_after_half_a_period_then_decisions_come_every_
 
 
 def test_the_default_policy_predicts_to_the_trials_end_at_the_groups_own_step():
-    """``MOTIONS["guard"]`` is ``for_trial``: trusted at tick 100, decisions start at 100 (a 1 s first period) and 200
+    """``MOTIONS["guard"]`` is ``for_trial``: trusted at tick 100, decisions start at 100 (a 3 s first period) and 400
     (then every 10 s), and each fan-out scores its candidates at 10 ms steps up to the trial's end, not 20 s."""
     group = TABLE2[2]  # 300 s
     block = MOTIONS["guard"](group)
@@ -158,6 +158,7 @@ def test_the_default_policy_predicts_to_the_trials_end_at_the_groups_own_step():
         None,
         0,
     )
+    assert block.first_period == 300 and MOTIONS["guard"](TABLE2[1]).first_period == 100  # 30 000 steps over 300 ticks
     jobs = []
     start = block._start
 
@@ -167,9 +168,9 @@ def test_the_default_policy_predicts_to_the_trials_end_at_the_groups_own_step():
 
     block._start = recorded
     trace = _closed_loop(group, block, 14.0, [])
-    assert [job[0] for job in jobs] == [100, 200, 1200]
+    assert [job[0] for job in jobs] == [100, 400, 1400]
     for k, lead_steps, steps, step in jobs:
-        lead_ticks = 100 if k == 100 else 1000  # the decision applies one period after it starts
+        lead_ticks = 300 if k == 100 else 1000  # the decision applies one period after it starts
         assert step == 0.01 and lead_steps == lead_ticks
         assert steps == round(group.duration / 0.01) - (k + lead_ticks)  # to the end, from the lead's end
     assert np.abs(np.angle(np.exp(1j * (trace["ref"] - trace["l0"])))).max() > 0.1  # it alters within the 14 s
