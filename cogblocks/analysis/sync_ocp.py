@@ -217,7 +217,7 @@ def _sweep(
 
 #: ``windowed_control_bound(**THOROUGH)``: every policy start and three more sweeps (windows of 2, 10 and 4 s)
 #: after the first. On the first 48 of seed 4's test groups (docs/pop-sync.md, "A thorough bound") it raised the
-#: mean gain of ``upper_bound(pace=False)`` from +3.52 % to +3.82 %, at 2.9× its CPU.
+#: mean gain of ``upper_bound(pace=False)`` from +3.52 % to +3.82 %, at 2.9× its CPU (with the session-10 guard start).
 THOROUGH: dict[str, Any] = {
     "pace": True,
     "guard": True,
