@@ -31,7 +31,7 @@ from filterpy.kalman import KalmanFilter
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
-__all__ = ["KalmanEstimator", "fit_noise"]
+__all__ = ["KalmanEstimator", "axis_transition", "fit_noise"]
 
 MODELS = ("cv", "ca")
 #: Number of kinematic states per axis (position, velocity[, acceleration]).
@@ -227,13 +227,7 @@ class KalmanEstimator(Block):
         self._post: tuple[np.ndarray, np.ndarray] | None = None
 
     def _transition(self, dt: float) -> np.ndarray:
-        one_axis = np.array(
-            [
-                [dt ** (j - i) / math.factorial(j - i) if j >= i else 0.0 for j in range(self.order)]
-                for i in range(self.order)
-            ]
-        )
-        return np.kron(np.eye(self.n), one_axis)
+        return np.kron(np.eye(self.n), axis_transition(self.order, dt))
 
     # -- the tick --------------------------------------------------------------
     def output(self, k: int) -> None:
@@ -338,6 +332,12 @@ class KalmanEstimator(Block):
         self.v_hat.value[...] = state[1::order].reshape(shape)
         self.a_hat.value[...] = state[2::order].reshape(shape) if order == 3 else 0.0
         self.predicted.value[...] = predicted
+
+
+def axis_transition(order: int, dt: float) -> np.ndarray:
+    """One axis's state transition over ``dt`` s of the kinematic model of ``order`` states (position first)."""
+    rows = range(order)
+    return np.array([[dt ** (j - i) / math.factorial(j - i) if j >= i else 0.0 for j in rows] for i in rows])
 
 
 def _shape_of(dims: int) -> tuple[int, ...]:

@@ -21,7 +21,7 @@ import scipy.signal
 import scipy.stats
 from filterpy.common import Q_continuous_white_noise
 
-from cogblocks.sensing.kalman import _DEFAULT_PROCESS_NOISE, _ORDER, MODELS
+from cogblocks.sensing.kalman import _DEFAULT_PROCESS_NOISE, _ORDER, MODELS, axis_transition
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
@@ -143,7 +143,7 @@ def rest_speed_bound(
     if noise == 0.0:
         return 0.0
     m = _ORDER[model]
-    f = np.array([[dt ** (j - i) / math.factorial(j - i) if j >= i else 0.0 for j in range(m)] for i in range(m)])
+    f = axis_transition(m, dt)
     h = np.eye(1, m)
     # the steady-state prior covariance, then the gain: x⁺ = (I − K H) F x⁺ + K z
     prior = scipy.linalg.solve_discrete_are(f.T, h.T, Q_continuous_white_noise(m, dt, q), np.array([[r * r]]))
