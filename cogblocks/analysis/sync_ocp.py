@@ -166,18 +166,19 @@ def _sweep(
     group: SyncGroup,
     adjacency: np.ndarray,
     params: BlenderParams,
+    tick: ca.Function,
     incumbent: tuple[np.ndarray, np.ndarray, np.ndarray],
     ticks: tuple[int, int, int, int],
     max_iter: int,
 ) -> int:
     """One block-coordinate sweep over the whole run, improving ``incumbent = (s, states, r)`` in place.
 
-    ``ticks = (window, tail, knot, screen)``. Returns the number of accepted steps.
+    ``tick`` is :func:`_tick`'s model of the group; ``ticks = (window, tail, knot, screen)``. Returns the number
+    of accepted steps.
     """
     s, states, r = incumbent
     window_ticks, tail_ticks, knot_ticks, screen_ticks = ticks
     n_steps = len(s)
-    tick = _tick(group, adjacency, params)
     roll = tick.mapaccum("roll", _CHUNK)
     solver, hats = _window_solver(tick, group.n, window_ticks, tail_ticks, knot_ticks, max_iter)
     length = window_ticks + tail_ticks
@@ -285,7 +286,8 @@ def windowed_control_bound(
         if min(window_ticks, knot_ticks) < 1 or tail_ticks < 0 or window_ticks % knot_ticks:
             raise ValueError(f"knot ({k} s) must divide window ({w} s); tail must be >= 0")
         ticks.append((window_ticks, tail_ticks, knot_ticks, round(screen / DT)))
-    roll = _tick(group, a, params).mapaccum("roll", _CHUNK)
+    tick = _tick(group, a, params)
+    roll = tick.mapaccum("roll", _CHUNK)
     s, starts, start_ref = start_references(group, a, n_steps, params)
     x_init = np.r_[np.zeros(group.n), params.lambda_max]
     states, r = alteration_rollout(roll, x_init, s)
@@ -296,7 +298,7 @@ def windowed_control_bound(
             s, states, r, start_ref = s_policy, states_policy, r_policy, policy_ref
     accepted, history = 0, []
     for sweep_ticks in ticks:
-        accepted += _sweep(group, a, params, (s, states, r), sweep_ticks, max_iter)
+        accepted += _sweep(group, a, params, tick, (s, states, r), sweep_ticks, max_iter)
         history.append(float(r.mean()))
     theta_ref = states[:, group.assisted] + states[:, group.n] * s
     value = resimulate(group, theta_ref, adjacency=a, blender=params)
