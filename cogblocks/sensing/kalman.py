@@ -31,14 +31,15 @@ from filterpy.kalman import KalmanFilter
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
-__all__ = ["KalmanEstimator", "axis_transition", "fit_noise"]
+__all__ = ["DEFAULT_PROCESS_NOISE", "MODELS", "ORDER", "KalmanEstimator", "axis_transition", "fit_noise"]
 
+#: The kinematic models: constant velocity, constant acceleration.
 MODELS = ("cv", "ca")
 #: Number of kinematic states per axis (position, velocity[, acceleration]).
-_ORDER = {"cv": 2, "ca": 3}
+ORDER = {"cv": 2, "ca": 3}
 #: Defaults for human arm motion in millimetres (0.5-1 Hz oscillations of 100-300 mm at 100 Hz),
 #: chosen on benchmarks/l1_delay.py; other units or motions need their own (see fit_noise).
-_DEFAULT_PROCESS_NOISE = {"cv": 3e6, "ca": 1e8}
+DEFAULT_PROCESS_NOISE = {"cv": 3e6, "ca": 1e8}
 _DEFAULT_MEASUREMENT_NOISE = 2.0
 # Var(Δ^m_L x) = c_m q (L dt)^(2m-1) + C(2m, m) r for the order-m model sampled every dt with white
 # measurement noise of variance r: c_m = ∫ B_{m-1}(u)² du, the squared norm of the cardinal B-spline of
@@ -159,9 +160,9 @@ class KalmanEstimator(Block):
     ) -> None:
         super().__init__(period=period)
         self.model = one_of(self, "model", model, MODELS)
-        self.order = _ORDER[model]
+        self.order = ORDER[model]
         if process_noise is None:
-            process_noise = _DEFAULT_PROCESS_NOISE[model]
+            process_noise = DEFAULT_PROCESS_NOISE[model]
         self.process_noise = finite_number(self, "process_noise", process_noise, low=0.0, low_open=True)
         self.measurement_noise = finite_number(self, "measurement_noise", measurement_noise, low=0.0, low_open=True)
         self.dims = None if dims is None else positive_int(self, "dims", dims)
@@ -403,7 +404,7 @@ def fit_noise(
         x = x[:, None]
     if x.ndim != 2:
         raise ValueError(f"fit_noise: positions must have shape (T,) or (T, n), got {x.shape}")
-    m = _ORDER[model]
+    m = ORDER[model]
     binom = [math.comb(m, j) * (-1) ** (m - j) for j in range(m + 1)]
     lags = [2**i for i in range(int(math.log2(max_lag)) + 1)]
     if len(x) < m * lags[-1] + 20:

@@ -21,7 +21,7 @@ import scipy.signal
 import scipy.stats
 from filterpy.common import Q_continuous_white_noise
 
-from cogblocks.sensing.kalman import _DEFAULT_PROCESS_NOISE, _ORDER, MODELS, axis_transition
+from cogblocks.sensing.kalman import DEFAULT_PROCESS_NOISE, MODELS, ORDER, axis_transition
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of, positive_int
 
@@ -134,7 +134,7 @@ def rest_speed_bound(
     dt = finite_number(name, "dt", dt, low=0.0, low_open=True)
     dims = positive_int(name, "dims", dims)
     quantile = finite_number(name, "quantile", quantile, low=0.0, high=1.0, low_open=True, high_open=True)
-    q = _DEFAULT_PROCESS_NOISE[model] if process_noise is None else process_noise
+    q = DEFAULT_PROCESS_NOISE[model] if process_noise is None else process_noise
     q = finite_number(name, "process_noise", q, low=0.0, low_open=True)
     r = noise if measurement_noise is None else measurement_noise
     r = finite_number(name, "measurement_noise", r, low=0.0, low_open=True)
@@ -142,7 +142,7 @@ def rest_speed_bound(
         cutoff = finite_number(name, "cutoff", cutoff, low=0.0, high=0.5 / dt, low_open=True, high_open=True)
     if noise == 0.0:
         return 0.0
-    m = _ORDER[model]
+    m = ORDER[model]
     f = axis_transition(m, dt)
     h = np.eye(1, m)
     # the steady-state prior covariance, then the gain: x⁺ = (I − K H) F x⁺ + K z
