@@ -36,7 +36,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cogblocks.analysis.sync_starts import policy_starts, start_references, switch_rules
+from cogblocks.analysis.sync_starts import policy_starts, start_references
 from cogblocks.blocks import Playback, Probe, Select, Substitute
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sim import Diagram, Simulator
@@ -44,6 +44,7 @@ from cogblocks.sync.blender import Blender
 from cogblocks.sync.group import KuramotoGroup
 from cogblocks.sync.model import DT, BlenderParams
 from cogblocks.sync.order import OrderParameter
+from cogblocks.sync.whole_run import CHUNK, alteration_rollout, sweep, tick_model
 
 __all__ = [
     "THOROUGH",
@@ -52,8 +53,6 @@ __all__ = [
     "resimulate",
     "windowed_control_bound",
 ]
-
-_CHUNK = 1000  # ticks per casadi rollout call
 
 
 def resimulate(
@@ -93,127 +92,9 @@ def _checked(group: SyncGroup, adjacency: Any, blender: BlenderParams | None) ->
 
 
 def alteration_model(group: SyncGroup, adjacency: Any = None, blender: BlenderParams | None = None) -> ca.Function:
-    """The exact discrete model mapped over :data:`_CHUNK` ticks, for :func:`alteration_rollout`."""
+    """The exact discrete model mapped over :data:`CHUNK` ticks, for :func:`alteration_rollout`."""
     a, params = _checked(group, adjacency, blender)
-    return _tick(group, a, params).mapaccum("roll", _CHUNK)
-
-
-def _tick(group: SyncGroup, adjacency: np.ndarray, params: BlenderParams) -> ca.Function:
-    """One tick of the exact discrete model: ``(x, s) -> (x_next, r)``, ``x = (θ_1 … θ_N, λ)``."""
-    n, i = group.n, group.assisted
-    x, s = ca.SX.sym("x", n + 1), ca.SX.sym("s")
-    theta, lam = x[:n], x[n]
-    alteration = lam * s
-    seen = ca.vertcat(theta[:i], theta[i] + alteration, theta[i + 1 :])
-    sin_s, cos_s = ca.sin(seen), ca.cos(seen)
-    r = ca.sqrt(ca.sum1(cos_s) ** 2 + ca.sum1(sin_s) ** 2) / n
-    a = ca.sparsify(ca.DM(adjacency))
-    pull = cos_s * ca.mtimes(a, sin_s) - sin_s * ca.mtimes(a, cos_s)
-    span = params.lambda_max - params.lambda_min
-    lam_inf = params.lambda_min + span * ca.fmax(0.0, 1.0 - ca.fabs(alteration) / params.e_max)
-    kappa = ca.if_else(lam <= lam_inf, params.kappa_up, params.kappa_down)
-    omega = ca.DM(np.asarray(group.omega, dtype=float))
-    x_next = ca.vertcat(theta + DT * (omega + group.gain * pull), lam - DT * kappa * (lam - lam_inf))
-    return ca.Function("tick", [x, s], [x_next, r])
-
-
-def alteration_rollout(roll: ca.Function, x0: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """States before each tick (``len(s)`` × (N + 1)) and r of each tick, for the alteration fractions ``s``.
-
-    ``roll`` is :func:`alteration_model`'s function; ``x0 = (θ, λ)``; the last chunk is padded.
-    """
-    states, rs = [], []
-    x = ca.DM(x0)
-    for start in range(0, len(s), _CHUNK):
-        part = s[start : start + _CHUNK]
-        xs, r = roll(x, np.pad(part, (0, _CHUNK - len(part)))[None, :])
-        xs, r = np.asarray(xs), np.asarray(r).ravel()
-        before = np.column_stack([np.asarray(x), xs[:, :-1]])  # the state each tick starts from
-        states.append(before[:, : len(part)].T)
-        rs.append(r[: len(part)])
-        x = ca.DM(before[:, len(part)]) if len(part) < _CHUNK else ca.DM(xs[:, -1])
-    return np.concatenate(states), np.concatenate(rs)
-
-
-def _window_solver(tick: ca.Function, n: int, window: int, tail: int, knot: int, max_iter: int) -> tuple:
-    """IPOPT over the piecewise-linear correction δ of one window; its hat matrix (window ticks × knots)."""
-    length = window + tail
-    knots = window // knot
-    ticks = np.arange(window)
-    hats = np.maximum(0.0, 1.0 - np.abs(ticks[:, None] / knot - np.arange(knots)[None, :]))
-    delta = ca.MX.sym("delta", knots)
-    x0, base, weight = ca.MX.sym("x0", n + 1), ca.MX.sym("base", length), ca.MX.sym("weight", length)
-    s = base + ca.vertcat(ca.mtimes(ca.DM(hats), delta), ca.DM.zeros(tail))
-    _, r = tick.mapaccum("window", length)(x0, s.T)
-    nlp = {
-        "x": delta,
-        "p": ca.vertcat(x0, base, weight),
-        "f": -ca.dot(weight, r.T) / window,
-        "g": ca.mtimes(ca.sparsify(ca.DM(hats)), delta),
-    }
-    options = {
-        "print_time": False,
-        "ipopt.print_level": 0,
-        "ipopt.sb": "yes",
-        "ipopt.max_iter": max_iter,
-        "ipopt.hessian_approximation": "limited-memory",
-        "ipopt.tol": 1e-6,
-    }
-    return ca.nlpsol("window_bound", "ipopt", nlp, options), hats
-
-
-def _sweep(
-    group: SyncGroup,
-    adjacency: np.ndarray,
-    params: BlenderParams,
-    tick: ca.Function,
-    incumbent: tuple[np.ndarray, np.ndarray, np.ndarray],
-    ticks: tuple[int, int, int, int],
-    max_iter: int,
-) -> int:
-    """One block-coordinate sweep over the whole run, improving ``incumbent = (s, states, r)`` in place.
-
-    ``tick`` is :func:`_tick`'s model of the group; ``ticks = (window, tail, knot, screen)``. Returns the number
-    of accepted steps.
-    """
-    s, states, r = incumbent
-    window_ticks, tail_ticks, knot_ticks, screen_ticks = ticks
-    n_steps = len(s)
-    roll = tick.mapaccum("roll", _CHUNK)
-    solver, hats = _window_solver(tick, group.n, window_ticks, tail_ticks, knot_ticks, max_iter)
-    length = window_ticks + tail_ticks
-    accepted = 0
-    for start in range(0, n_steps, window_ticks):
-        left = n_steps - start
-        # 1. switch to a rule (held over the window, or `screen` s, then the incumbent again)
-        r_rules, s_rules = switch_rules(group, adjacency, params, states[start], s[start], min(screen_ticks, left))
-        gains = np.cumsum(r_rules, axis=0) - np.cumsum(r[start : start + len(r_rules)])[:, None]
-        trials = []
-        for horizon in {min(window_ticks, left), min(screen_ticks, left)}:
-            best = int(np.argmax(gains[horizon - 1]))
-            if gains[horizon - 1, best] > 0:
-                trial = s[start:].copy()
-                trial[:horizon] = s_rules[:horizon, best]
-                trials.append(trial)
-        # 2. refine the incumbent's window by IPOPT
-        base = np.zeros(length)
-        base[: min(length, left)] = s[start : start + length]
-        weight = (np.arange(start, start + length) < n_steps).astype(float)
-        inner = base[:window_ticks]
-        solution = solver(
-            x0=np.zeros(hats.shape[1]), p=np.r_[states[start], base, weight], lbg=-1.0 - inner, ubg=1.0 - inner
-        )
-        delta = np.asarray(solution["x"]).ravel()
-        if np.isfinite(delta).all():
-            trial = s[start:].copy()
-            trial[:window_ticks] = np.clip(trial[:window_ticks] + (hats @ delta)[: min(window_ticks, left)], -1, 1)
-            trials.append(trial)
-        for trial in trials:  # kept only if the mean r of the whole run rises
-            trial_states, trial_r = alteration_rollout(roll, states[start], trial)
-            if trial_r.sum() > r[start:].sum():
-                s[start:], states[start:], r[start:] = trial, trial_states, trial_r
-                accepted += 1
-    return accepted
+    return tick_model(group, a, params).mapaccum("roll", CHUNK)
 
 
 #: ``windowed_control_bound(**THOROUGH)``: every policy start and three more sweeps (windows of 2, 10 and 4 s)
@@ -286,8 +167,8 @@ def windowed_control_bound(
         if min(window_ticks, knot_ticks) < 1 or tail_ticks < 0 or window_ticks % knot_ticks:
             raise ValueError(f"knot ({k} s) must divide window ({w} s); tail must be >= 0")
         ticks.append((window_ticks, tail_ticks, knot_ticks, round(screen / DT)))
-    tick = _tick(group, a, params)
-    roll = tick.mapaccum("roll", _CHUNK)
+    tick = tick_model(group, a, params)
+    roll = tick.mapaccum("roll", CHUNK)
     s, starts, start_ref = start_references(group, a, n_steps, params)
     x_init = np.r_[np.zeros(group.n), params.lambda_max]
     states, r = alteration_rollout(roll, x_init, s)
@@ -298,7 +179,7 @@ def windowed_control_bound(
             s, states, r, start_ref = s_policy, states_policy, r_policy, policy_ref
     accepted, history = 0, []
     for sweep_ticks in ticks:
-        accepted += _sweep(group, a, params, tick, (s, states, r), sweep_ticks, max_iter)
+        accepted += sweep(group, a, params, tick, (s, states, r), sweep_ticks, max_iter)
         history.append(float(r.mean()))
     theta_ref = states[:, group.assisted] + states[:, group.n] * s
     value = resimulate(group, theta_ref, adjacency=a, blender=params)

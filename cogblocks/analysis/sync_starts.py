@@ -19,48 +19,9 @@ from cogblocks.sync.guarded import GuardedPacingMotion
 from cogblocks.sync.l2 import L2Sync
 from cogblocks.sync.model import DT, BlenderParams
 from cogblocks.sync.pacing import PacingMotion
+from cogblocks.sync.whole_run import rule_rollouts
 
-__all__ = ["closed_loop_start", "policy_starts", "rule_rollouts", "start_references", "switch_rules"]
-
-
-def rule_rollouts(
-    group: SyncGroup,
-    adjacency: np.ndarray,
-    params: BlenderParams,
-    state: np.ndarray,
-    rules: tuple[np.ndarray, np.ndarray, np.ndarray],
-    n_ticks: int,
-    record: bool,
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """Reference rules in closed loop from ``state`` (θ, λ), all at once on the exact NumPy model.
-
-    ``rules = (kind, phase0, freq)``: kind 0 does nothing (θ_ref = θ_L0), 1 follows the circular mean of the
-    others, 2 is the constant frequency θ_ref = phase0 + freq · t (t from ``state``). Returns the r of every tick
-    and rule (``n_ticks`` × rules) if ``record``, else only their sums, and the alteration fractions if ``record``.
-    """
-    kind, phase0, freq = rules
-    b, i, n = len(kind), group.assisted, group.n
-    others = np.arange(n) != i
-    omega = np.asarray(group.omega, dtype=float)
-    theta, lam = np.tile(state[:n], (b, 1)), np.full(b, state[n])
-    total = np.zeros((n_ticks, b) if record else b)
-    s = np.zeros((n_ticks, b)) if record else None
-    slope = (params.lambda_max - params.lambda_min) / params.e_max
-    for k in range(n_ticks):
-        z = np.exp(1j * theta)
-        reference = np.where(kind == 1, np.angle(z[:, others].sum(axis=1)), phase0 + freq * (k * DT))
-        l0 = theta[:, i]
-        alteration = np.where(kind == 0, 0.0, np.clip(np.mod(reference - l0 + np.pi, 2 * np.pi) - np.pi, -lam, lam))
-        z[:, i] = np.exp(1j * (l0 + alteration))
-        r = np.abs(z.sum(axis=1)) / n
-        if record:
-            total[k], s[k] = r, alteration / lam
-        else:
-            total += r
-        lam_inf = np.maximum(params.lambda_min, params.lambda_max - slope * np.abs(alteration))
-        lam = lam - DT * np.where(lam <= lam_inf, params.kappa_up, params.kappa_down) * (lam - lam_inf)
-        theta = theta + DT * (omega + group.gain * (z.conj() * (z @ adjacency.T)).imag)
-    return total, (np.clip(s, -1.0, 1.0) if record else None)
+__all__ = ["closed_loop_start", "policy_starts", "start_references"]
 
 
 def start_references(
@@ -89,27 +50,6 @@ def start_references(
     # the same expression as constant_frequency_bound's reference, so that re-simulations agree to the bit
     theta_ref = rules[1][top] + rules[2][top] * DT * np.arange(n_steps) if kind[top] == 2 else None
     return s[:, 0], best, theta_ref
-
-
-def switch_rules(
-    group: SyncGroup,
-    adjacency: np.ndarray,
-    params: BlenderParams,
-    state: np.ndarray,
-    s_now: float,
-    n_ticks: int,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Rules to switch to at a window's start: nothing, the mean, 16 constant frequencies from the reference
-    now or from the others' mean. Their r per tick and alteration fractions over ``n_ticks``."""
-    n, i = group.n, group.assisted
-    omega = np.asarray(group.omega, dtype=float)
-    grid = np.linspace(omega.min() - 0.5, omega.max() + 0.5, 16)
-    theta = state[:n]
-    reference_now = theta[i] + state[n] * s_now
-    mean_now = np.angle(np.exp(1j * np.delete(theta, i)).sum())
-    kind = np.r_[0, 1, np.full(2 * len(grid), 2)]
-    phase0 = np.r_[0.0, 0.0, np.full(len(grid), reference_now), np.full(len(grid), mean_now)]
-    return rule_rollouts(group, adjacency, params, state, (kind, phase0, np.r_[0.0, 0.0, grid, grid]), n_ticks, True)
 
 
 def closed_loop_start(

@@ -1,0 +1,267 @@
+"""The exact discrete model of a group with its blender, and the search over its alterations that plans a whole run.
+
+Within the blender's limits, a reference can only choose the alteration ``a_k = θ_L2 − θ_L0`` of each tick in
+``[−λ_k, λ_k]``, so a plan is a sequence of alteration fractions ``s_k = a_k / λ_k`` in ``[−1, 1]``
+(``θ_ref,k = θ_L0,k + λ_k s_k``). This module holds what both the offline bound
+(:mod:`cogblocks.analysis.sync_ocp`) and the planning motion computer (:class:`~cogblocks.sync.planned.PlannedMotion`)
+search with:
+
+* :func:`tick_model`: one 10 ms tick of the group, the blender (hard clip, ψ, κ switch) and the order parameter of
+  the phases with θ_L2 substituted, as a casadi function; :func:`alteration_rollout` runs it over a plan;
+* :func:`rule_rollouts`: simple reference rules (doing nothing, the others' circular mean, constant frequencies) in
+  closed loop on the same model in NumPy, all at once; :func:`switch_rules` the rules a window can switch to;
+* :func:`sweep`: block-coordinate ascent over consecutive windows (a rule switched to, or an IPOPT correction on
+  knots), each step kept only if the mean r to the end rises;
+* :func:`plan_alterations`: the best rule from a given state, then sweeps: a plan for the rest of a run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import casadi as ca
+import numpy as np
+
+from cogblocks.data.groups import SyncGroup
+from cogblocks.sync.model import DT, BlenderParams
+
+__all__ = [
+    "CHUNK",
+    "alteration_rollout",
+    "plan_alterations",
+    "rule_rollouts",
+    "state_rules",
+    "sweep",
+    "switch_rules",
+    "tick_model",
+]
+
+CHUNK = 1000  # ticks per casadi rollout call
+
+
+def tick_model(group: SyncGroup, adjacency: np.ndarray, params: BlenderParams) -> ca.Function:
+    """One tick of the exact discrete model: ``(x, s) -> (x_next, r)``, ``x = (θ_1 … θ_N, λ)``."""
+    n, i = group.n, group.assisted
+    x, s = ca.SX.sym("x", n + 1), ca.SX.sym("s")
+    theta, lam = x[:n], x[n]
+    alteration = lam * s
+    seen = ca.vertcat(theta[:i], theta[i] + alteration, theta[i + 1 :])
+    sin_s, cos_s = ca.sin(seen), ca.cos(seen)
+    r = ca.sqrt(ca.sum1(cos_s) ** 2 + ca.sum1(sin_s) ** 2) / n
+    a = ca.sparsify(ca.DM(adjacency))
+    pull = cos_s * ca.mtimes(a, sin_s) - sin_s * ca.mtimes(a, cos_s)
+    span = params.lambda_max - params.lambda_min
+    lam_inf = params.lambda_min + span * ca.fmax(0.0, 1.0 - ca.fabs(alteration) / params.e_max)
+    kappa = ca.if_else(lam <= lam_inf, params.kappa_up, params.kappa_down)
+    omega = ca.DM(np.asarray(group.omega, dtype=float))
+    x_next = ca.vertcat(theta + DT * (omega + group.gain * pull), lam - DT * kappa * (lam - lam_inf))
+    return ca.Function("tick", [x, s], [x_next, r])
+
+
+def alteration_rollout(roll: ca.Function, x0: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """States before each tick (``len(s)`` × (N + 1)) and r of each tick, for the alteration fractions ``s``.
+
+    ``roll`` is :func:`tick_model` mapped over :data:`CHUNK` ticks (``tick.mapaccum("roll", CHUNK)``);
+    ``x0 = (θ, λ)``; the last chunk is padded.
+    """
+    states, rs = [], []
+    x = ca.DM(x0)
+    for start in range(0, len(s), CHUNK):
+        part = s[start : start + CHUNK]
+        xs, r = roll(x, np.pad(part, (0, CHUNK - len(part)))[None, :])
+        xs, r = np.asarray(xs), np.asarray(r).ravel()
+        before = np.column_stack([np.asarray(x), xs[:, :-1]])  # the state each tick starts from
+        states.append(before[:, : len(part)].T)
+        rs.append(r[: len(part)])
+        x = ca.DM(before[:, len(part)]) if len(part) < CHUNK else ca.DM(xs[:, -1])
+    return np.concatenate(states), np.concatenate(rs)
+
+
+def rule_rollouts(
+    group: SyncGroup,
+    adjacency: np.ndarray,
+    params: BlenderParams,
+    state: np.ndarray,
+    rules: tuple[np.ndarray, np.ndarray, np.ndarray],
+    n_ticks: int,
+    record: bool,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Reference rules in closed loop from ``state`` (θ, λ), all at once on the exact NumPy model.
+
+    ``rules = (kind, phase0, freq)``: kind 0 does nothing (θ_ref = θ_L0), 1 follows the circular mean of the
+    others, 2 is the constant frequency θ_ref = phase0 + freq · t (t from ``state``). Returns the r of every tick
+    and rule (``n_ticks`` × rules) if ``record``, else only their sums, and the alteration fractions if ``record``.
+    """
+    kind, phase0, freq = rules
+    b, i, n = len(kind), group.assisted, group.n
+    others = np.arange(n) != i
+    omega = np.asarray(group.omega, dtype=float)
+    theta, lam = np.tile(state[:n], (b, 1)), np.full(b, state[n])
+    total = np.zeros((n_ticks, b) if record else b)
+    s = np.zeros((n_ticks, b)) if record else None
+    slope = (params.lambda_max - params.lambda_min) / params.e_max
+    for k in range(n_ticks):
+        z = np.exp(1j * theta)
+        reference = np.where(kind == 1, np.angle(z[:, others].sum(axis=1)), phase0 + freq * (k * DT))
+        l0 = theta[:, i]
+        alteration = np.where(kind == 0, 0.0, np.clip(np.mod(reference - l0 + np.pi, 2 * np.pi) - np.pi, -lam, lam))
+        z[:, i] = np.exp(1j * (l0 + alteration))
+        r = np.abs(z.sum(axis=1)) / n
+        if record:
+            total[k], s[k] = r, alteration / lam
+        else:
+            total += r
+        lam_inf = np.maximum(params.lambda_min, params.lambda_max - slope * np.abs(alteration))
+        lam = lam - DT * np.where(lam <= lam_inf, params.kappa_up, params.kappa_down) * (lam - lam_inf)
+        theta = theta + DT * (omega + group.gain * (z.conj() * (z @ adjacency.T)).imag)
+    return total, (np.clip(s, -1.0, 1.0) if record else None)
+
+
+def switch_rules(
+    group: SyncGroup,
+    adjacency: np.ndarray,
+    params: BlenderParams,
+    state: np.ndarray,
+    s_now: float,
+    n_ticks: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rules to switch to at a window's start: nothing, the mean, 16 constant frequencies from the reference
+    now or from the others' mean. Their r per tick and alteration fractions over ``n_ticks``."""
+    n, i = group.n, group.assisted
+    omega = np.asarray(group.omega, dtype=float)
+    grid = np.linspace(omega.min() - 0.5, omega.max() + 0.5, 16)
+    theta = state[:n]
+    reference_now = theta[i] + state[n] * s_now
+    mean_now = np.angle(np.exp(1j * np.delete(theta, i)).sum())
+    kind = np.r_[0, 1, np.full(2 * len(grid), 2)]
+    phase0 = np.r_[0.0, 0.0, np.full(len(grid), reference_now), np.full(len(grid), mean_now)]
+    return rule_rollouts(group, adjacency, params, state, (kind, phase0, np.r_[0.0, 0.0, grid, grid]), n_ticks, True)
+
+
+def _window_solver(tick: ca.Function, n: int, window: int, tail: int, knot: int, max_iter: int) -> tuple:
+    """IPOPT over the piecewise-linear correction δ of one window; its hat matrix (window ticks × knots)."""
+    length = window + tail
+    knots = window // knot
+    ticks = np.arange(window)
+    hats = np.maximum(0.0, 1.0 - np.abs(ticks[:, None] / knot - np.arange(knots)[None, :]))
+    delta = ca.MX.sym("delta", knots)
+    x0, base, weight = ca.MX.sym("x0", n + 1), ca.MX.sym("base", length), ca.MX.sym("weight", length)
+    s = base + ca.vertcat(ca.mtimes(ca.DM(hats), delta), ca.DM.zeros(tail))
+    _, r = tick.mapaccum("window", length)(x0, s.T)
+    nlp = {
+        "x": delta,
+        "p": ca.vertcat(x0, base, weight),
+        "f": -ca.dot(weight, r.T) / window,
+        "g": ca.mtimes(ca.sparsify(ca.DM(hats)), delta),
+    }
+    options = {
+        "print_time": False,
+        "ipopt.print_level": 0,
+        "ipopt.sb": "yes",
+        "ipopt.max_iter": max_iter,
+        "ipopt.hessian_approximation": "limited-memory",
+        "ipopt.tol": 1e-6,
+    }
+    return ca.nlpsol("window_bound", "ipopt", nlp, options), hats
+
+
+def sweep(
+    group: SyncGroup,
+    adjacency: np.ndarray,
+    params: BlenderParams,
+    tick: ca.Function,
+    incumbent: tuple[np.ndarray, np.ndarray, np.ndarray],
+    ticks: tuple[int, int, int, int],
+    max_iter: int,
+) -> int:
+    """One block-coordinate sweep over the whole run, improving ``incumbent = (s, states, r)`` in place.
+
+    ``tick`` is :func:`tick_model`'s model of the group; ``ticks = (window, tail, knot, screen)``. Returns the number
+    of accepted steps.
+    """
+    s, states, r = incumbent
+    window_ticks, tail_ticks, knot_ticks, screen_ticks = ticks
+    n_steps = len(s)
+    roll = tick.mapaccum("roll", CHUNK)
+    solver, hats = _window_solver(tick, group.n, window_ticks, tail_ticks, knot_ticks, max_iter)
+    length = window_ticks + tail_ticks
+    accepted = 0
+    for start in range(0, n_steps, window_ticks):
+        left = n_steps - start
+        # 1. switch to a rule (held over the window, or `screen` s, then the incumbent again)
+        r_rules, s_rules = switch_rules(group, adjacency, params, states[start], s[start], min(screen_ticks, left))
+        gains = np.cumsum(r_rules, axis=0) - np.cumsum(r[start : start + len(r_rules)])[:, None]
+        trials = []
+        for horizon in {min(window_ticks, left), min(screen_ticks, left)}:
+            best = int(np.argmax(gains[horizon - 1]))
+            if gains[horizon - 1, best] > 0:
+                trial = s[start:].copy()
+                trial[:horizon] = s_rules[:horizon, best]
+                trials.append(trial)
+        # 2. refine the incumbent's window by IPOPT
+        base = np.zeros(length)
+        base[: min(length, left)] = s[start : start + length]
+        weight = (np.arange(start, start + length) < n_steps).astype(float)
+        inner = base[:window_ticks]
+        solution = solver(
+            x0=np.zeros(hats.shape[1]), p=np.r_[states[start], base, weight], lbg=-1.0 - inner, ubg=1.0 - inner
+        )
+        delta = np.asarray(solution["x"]).ravel()
+        if np.isfinite(delta).all():
+            trial = s[start:].copy()
+            trial[:window_ticks] = np.clip(trial[:window_ticks] + (hats @ delta)[: min(window_ticks, left)], -1, 1)
+            trials.append(trial)
+        for trial in trials:  # kept only if the mean r of the whole run rises
+            trial_states, trial_r = alteration_rollout(roll, states[start], trial)
+            if trial_r.sum() > r[start:].sum():
+                s[start:], states[start:], r[start:] = trial, trial_states, trial_r
+                accepted += 1
+    return accepted
+
+
+def state_rules(group: SyncGroup, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rules to start a plan from ``state`` with (:func:`rule_rollouts`' ``(kind, phase0, freq)``).
+
+    Doing nothing, the others' circular mean, and 41 constant frequencies over [min ω − 0.5, max ω + 0.5] from six
+    phases: 0, π/2, π, 3π/2, the assisted participant's phase and the others' circular mean in ``state``.
+    """
+    n, i = group.n, group.assisted
+    omega = np.asarray(group.omega, dtype=float)
+    theta = state[:n]
+    phases = np.r_[np.arange(4) * np.pi / 2, theta[i], np.angle(np.exp(1j * np.delete(theta, i)).sum())]
+    freq, phase0 = (v.ravel() for v in np.meshgrid(np.linspace(omega.min() - 0.5, omega.max() + 0.5, 41), phases))
+    return np.r_[0, 1, np.full(len(freq), 2)], np.r_[0.0, 0.0, phase0], np.r_[0.0, 0.0, freq]
+
+
+def plan_alterations(
+    group: SyncGroup,
+    adjacency: np.ndarray,
+    params: BlenderParams,
+    state: np.ndarray,
+    n_ticks: int,
+    sweeps: Sequence[tuple[float, float, float]],
+    *,
+    screen: float = 10.0,
+    max_iter: int = 20,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A plan of ``n_ticks`` alteration fractions from ``state = (θ, λ)`` on ``group``'s model, and its r per tick.
+
+    The best rule of :func:`state_rules` over the whole plan, then one :func:`sweep` per ``(window, tail, knot)``
+    of ``sweeps`` (s), each from the last one's result: every accepted step raises the plan's mean r, so the plan
+    is never predicted worse than doing nothing.
+    """
+    if n_ticks < 1:
+        raise ValueError(f"a plan needs at least one tick, got {n_ticks}")
+    rules = state_rules(group, state)
+    sums, _ = rule_rollouts(group, adjacency, params, state, rules, n_ticks, record=False)
+    top = int(np.argmax(sums))
+    _, s = rule_rollouts(group, adjacency, params, state, tuple(v[top : top + 1] for v in rules), n_ticks, record=True)
+    s = s[:, 0].copy()
+    tick = tick_model(group, adjacency, params)
+    states, r = alteration_rollout(tick.mapaccum("roll", CHUNK), state, s)
+    for window, tail, knot in sweeps:
+        ticks = tuple(round(v / DT) for v in (window, tail, knot, screen))
+        if min(ticks[0], ticks[2]) < 1 or ticks[1] < 0 or ticks[0] % ticks[2]:
+            raise ValueError(f"knot ({knot} s) must divide window ({window} s); tail must be >= 0")
+        sweep(group, adjacency, params, tick, (s, states, r), ticks, max_iter)
+    return s, r
