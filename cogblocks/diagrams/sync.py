@@ -78,6 +78,12 @@ def _pace_motion(group: SyncGroup) -> Block:
     return PacingMotion(group.n, group.assisted, adjacency=group.graph)
 
 
+def _plan_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import PlannedMotion
+
+    return PlannedMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+
+
 def _guard_motion(group: SyncGroup) -> Block:
     from cogblocks.sync import GuardedPacingMotion
 
@@ -93,7 +99,8 @@ def _guard_motion(group: SyncGroup) -> Block:
 #: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 3 s
 #: every 0.5 s with casadi on a model it identifies online, ``pace`` chooses every period between doing
 #: nothing, the circular mean and constant pacing frequencies by simulating that identified model seconds
-#: ahead (no oracle, no training). Add an entry to make a policy available to
+#: ahead (no oracle, no training), ``plan`` identifies the group for 1 s, then plans the rest of the trial at once
+#: with the bound's search and plays it (offline: the plan takes seconds of CPU). Add an entry to make a policy available to
 #: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
@@ -103,6 +110,7 @@ MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "mean": _mean_motion,
     "mpc": _mpc_motion,
     "pace": _pace_motion,
+    "plan": _plan_motion,
 }
 
 #: The motion computer :func:`pop_sync` uses when none is given (docs/pop-sync.md, "Default", says why).

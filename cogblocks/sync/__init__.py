@@ -2,8 +2,8 @@
 its stability check, the motion computers with their L3 policies and the group model they plan with,
 and the L2 architecture as one block.
 
-``DQNPolicy``, ``MPCMotion`` and ``GroupIdentifier`` are imported on first use, so that this package loads
-without torch and without casadi.
+``DQNPolicy``, ``MPCMotion``, ``PlannedMotion`` and ``GroupIdentifier`` are imported on first use, so that this
+package loads without torch and without casadi.
 """
 
 import importlib
@@ -25,6 +25,7 @@ _LAZY = {
     "GuardedPacingMotion": "cogblocks.sync.guarded",
     "MPCMotion": "cogblocks.sync.mpc",
     "PacingMotion": "cogblocks.sync.pacing",
+    "PlannedMotion": "cogblocks.sync.planned",
     "ShieldedMotion": "cogblocks.sync.shielded",
 }
 
@@ -48,6 +49,7 @@ __all__ = [
     "MotionComputer",
     "OrderParameter",
     "PacingMotion",
+    "PlannedMotion",
     "ShieldedMotion",
     "SyncModel",
     "check_blender",

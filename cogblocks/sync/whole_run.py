@@ -243,12 +243,13 @@ def plan_alterations(
     *,
     screen: float = 10.0,
     max_iter: int = 20,
-) -> tuple[np.ndarray, np.ndarray]:
-    """A plan of ``n_ticks`` alteration fractions from ``state = (θ, λ)`` on ``group``'s model, and its r per tick.
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A plan of ``n_ticks`` alteration fractions from ``state = (θ, λ)`` on ``group``'s model, its states, its r.
 
     The best rule of :func:`state_rules` over the whole plan, then one :func:`sweep` per ``(window, tail, knot)``
     of ``sweeps`` (s), each from the last one's result: every accepted step raises the plan's mean r, so the plan
-    is never predicted worse than doing nothing.
+    is never predicted worse than doing nothing. Returns ``(s, states, r)``: the fractions, the state before each
+    tick (``n_ticks`` × (N + 1), λ last) and the predicted r of each tick.
     """
     if n_ticks < 1:
         raise ValueError(f"a plan needs at least one tick, got {n_ticks}")
@@ -264,4 +265,4 @@ def plan_alterations(
         if min(ticks[0], ticks[2]) < 1 or ticks[1] < 0 or ticks[0] % ticks[2]:
             raise ValueError(f"knot ({knot} s) must divide window ({window} s); tail must be >= 0")
         sweep(group, adjacency, params, tick, (s, states, r), ticks, max_iter)
-    return s, r
+    return s, states, r
