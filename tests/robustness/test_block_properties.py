@@ -735,7 +735,7 @@ register_l2_sync()
 
 
 def register_mpc() -> None:
-    from cogblocks.sync import GroupIdentifier, GuardedPacingMotion, MPCMotion, PacingMotion
+    from cogblocks.sync import GroupIdentifier, GuardedPacingMotion, MPCMotion, PacingMotion, PlannedMotion
     from cogblocks.sync.pacing import PACE
 
     # one small problem (a single cached casadi build) whatever hypothesis draws
@@ -785,6 +785,24 @@ def register_mpc() -> None:
         lambda b: {"theta": phase((b.n,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
         ["theta", "lam"],
         Policy(holds={"theta_ref": lambda b, ins, seen: b.mode != PACE and not _usable(ins)}),
+    )
+    # "a bad tick identifies or plans nothing; θ_ref holds" (no window sweep: the rule starts alone keep it cheap)
+    register(
+        PlannedMotion,
+        st.integers(2, 5).flatmap(
+            lambda n: st.builds(
+                PlannedMotion,
+                st.just(n),
+                st.integers(0, n - 1),
+                end=st.floats(0.05, 0.3),
+                sweeps=st.just(()),
+                min_ticks=st.integers(1, 3),
+                min_excitation=st.just(0.0),
+            )
+        ),
+        lambda b: {"theta": phase((b.n,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
+        ["theta", "lam"],
+        Policy(holds={"theta_ref": lambda b, ins, seen: not _usable(ins)}),
     )
     register(
         GroupIdentifier,
