@@ -99,9 +99,9 @@ def _guard_motion(group: SyncGroup) -> Block:
 #: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 3 s
 #: every 0.5 s with casadi on a model it identifies online, ``pace`` chooses every period between doing
 #: nothing, the circular mean and constant pacing frequencies by simulating that identified model seconds
-#: ahead (no oracle, no training), ``plan`` identifies the group for 1 s, then plans the rest of the trial at once
-#: with the bound's search and plays it (offline: the plan takes seconds of CPU). Add an entry to make a policy available to
-#: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
+#: ahead (no oracle, no training), ``plan`` identifies the group for 1 s, then plans the rest of the trial at
+#: once with the bound's search and plays it (offline: the plan takes seconds of CPU). Add an entry to make a
+#: policy available to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
     "dqn_raw": _dqn_raw_motion,

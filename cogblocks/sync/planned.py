@@ -147,7 +147,8 @@ class PlannedMotion(_MotionPorts):
         if self.count >= self.min_ticks and self.rls.gain_excitation() >= self.min_excitation:
             omega, gain = self.rls.estimate()
             if np.isfinite(omega).all() and math.isfinite(gain):
-                self._make_plan(k, theta, min(max(lam, self.blender.lambda_min), self.blender.lambda_max), omega, gain, dt)
+                lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
+                self._make_plan(k, theta, lam, omega, gain, dt)
 
     def _make_plan(self, k: int, theta: np.ndarray, lam: float, omega: np.ndarray, gain: float, dt: float) -> None:
         """Plan ticks k + 1 … the trial's last one from the state predicted for tick k + 1 (nothing altered at k)."""
