@@ -37,6 +37,7 @@ MODULES = [
     "benchmarks.optimal_blending",
     "benchmarks.mpc",
     "benchmarks.bound",
+    "benchmarks.plan",
     "benchmarks.pace",
     "benchmarks.guard",
     "benchmarks.soak",

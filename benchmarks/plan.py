@@ -1,0 +1,45 @@
+"""The cost of the planning motion computer ``plan`` (:class:`~cogblocks.sync.planned.PlannedMotion`).
+
+* ``plan.<group>.plan_cpu_s``: CPU seconds of the one tick that plans the rest of the trial (``plan_ms``);
+  reference: the CPU seconds of one closed-loop simulation of the same group without L2, measured in the same run,
+  so ``ratio`` is the plan's cost in plain simulations. ``per_simulated_s`` is the plan's CPU per second of trial.
+* ``plan.<group>.r``: r with ``plan``; reference: r without L2.
+
+Groups: Table 2's group 1 (10 s) and the first three groups of the *validation* split (never the test split);
+``quick`` cuts every group to at most 20 s.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Iterator
+
+from cogblocks.data.groups import TABLE2, random_groups
+from cogblocks.diagrams.sync import MOTIONS, pop_sync
+from cogblocks.sim import Simulator
+
+
+def run(quick: bool = False) -> Iterator[dict]:
+    """Yield the plan's CPU time per group against a plain simulation of that group, and its r."""
+    groups = {"group1": TABLE2[1]} | {f"validation{i}": g for i, g in enumerate(random_groups(3, "validation", 0))}
+    for label, group in groups.items():
+        if quick:
+            group = dataclasses.replace(group, duration=min(group.duration, 20.0))
+        n_steps = round(group.duration / 0.01) + 1
+        start = time.process_time()
+        r0 = float(Simulator(pop_sync(group, l2=False)).run(n_steps=n_steps)["r"].mean())
+        sim_s = time.process_time() - start
+        block = MOTIONS["plan"](group)
+        r = float(Simulator(pop_sync(group, motion=block)).run(n_steps=n_steps)["r"].mean())
+        plan_s = (block.plan_ms or 0.0) / 1e3
+        context = {"n": group.n, "graph": group.graph_kind, "duration_s": group.duration}
+        yield {
+            "name": f"plan.{label}.plan_cpu_s",
+            "value": plan_s,
+            "unit": "s",
+            "reference": sim_s,
+            "ratio": plan_s / sim_s,
+            "per_simulated_s": plan_s / group.duration,
+        } | context
+        yield {"name": f"plan.{label}.r", "value": r, "unit": "r", "reference": r0, "ratio": r / r0} | context
