@@ -18,6 +18,15 @@ def test_help_lists_run(capsys):
     assert "run" in capsys.readouterr().out
 
 
+def test_sync_help_names_every_motion_computer(capsys):
+    from cogblocks.diagrams.sync import MOTIONS
+
+    assert main(["run", "sync", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    listed = text.split("motion computer(s) to run: ")[1].split(" (default")[0]
+    assert listed.split(", ") == sorted(MOTIONS)
+
+
 def test_console_script_help():
     out = subprocess.run([sys.executable, "-m", "cogblocks.cli", "--help"], capture_output=True, text=True, check=True)
     assert "usage: cogblocks" in out.stdout and "run" in out.stdout
