@@ -9,8 +9,8 @@ a_k the planned alteration of tick k. Past the plan it does nothing again.
 
 The plan is computed in one tick: about 0.3 s of CPU per second of trial (docs/pop-sync.md, "Planning the whole
 trial"), so the block is for simulated trials, not for live runs at 100 Hz. It plays the plan open loop: it is only
-as good as the identified model (exact to about 1e-5 rad/s on a simulated group; an error of 0.01 rad/s loses most
-of the plan's gain over ``guard``'s, docs/pop-sync.md).
+as good as the identified model (ω to about 5e-5 rad/s after 1 s on a simulated group; an error of 0.01 rad/s
+loses most of the plan's gain over ``guard``'s, docs/pop-sync.md).
 """
 
 from __future__ import annotations
