@@ -44,7 +44,7 @@ from cogblocks.sync.blender import Blender
 from cogblocks.sync.group import KuramotoGroup
 from cogblocks.sync.model import DT, BlenderParams
 from cogblocks.sync.order import OrderParameter
-from cogblocks.sync.whole_run import CHUNK, alteration_rollout, sweep, tick_model
+from cogblocks.sync.whole_run import CHUNK, alteration_rollout, sweep, sweep_ticks, tick_model
 
 __all__ = [
     "THOROUGH",
@@ -161,12 +161,7 @@ def windowed_control_bound(
     duration = group.duration if duration is None else float(duration)
     n_steps = round(duration / DT) + 1
     sweeps = [(window, tail, knot), *(tuple(p) for p in passes)]
-    ticks = []
-    for w, t, k in sweeps:
-        window_ticks, tail_ticks, knot_ticks = (round(v / DT) for v in (w, t, k))
-        if min(window_ticks, knot_ticks) < 1 or tail_ticks < 0 or window_ticks % knot_ticks:
-            raise ValueError(f"knot ({k} s) must divide window ({w} s); tail must be >= 0")
-        ticks.append((window_ticks, tail_ticks, knot_ticks, round(screen / DT)))
+    ticks = [sweep_ticks(w, t, k, screen) for w, t, k in sweeps]
     tick = tick_model(group, a, params)
     roll = tick.mapaccum("roll", CHUNK)
     s, starts, start_ref = start_references(group, a, n_steps, params)
@@ -178,8 +173,8 @@ def windowed_control_bound(
         if r_policy.sum() > r.sum():
             s, states, r, start_ref = s_policy, states_policy, r_policy, policy_ref
     accepted, history = 0, []
-    for sweep_ticks in ticks:
-        accepted += sweep(group, a, params, tick, (s, states, r), sweep_ticks, max_iter)
+    for one_sweep in ticks:
+        accepted += sweep(group, a, params, tick, (s, states, r), one_sweep, max_iter)
         history.append(float(r.mean()))
     theta_ref = states[:, group.assisted] + states[:, group.n] * s
     value = resimulate(group, theta_ref, adjacency=a, blender=params)

@@ -32,6 +32,7 @@ __all__ = [
     "rule_rollouts",
     "state_rules",
     "sweep",
+    "sweep_ticks",
     "switch_rules",
     "tick_model",
 ]
@@ -165,6 +166,15 @@ def _window_solver(tick: ca.Function, n: int, window: int, tail: int, knot: int,
     return ca.nlpsol("window_bound", "ipopt", nlp, options), hats
 
 
+def sweep_ticks(window: float, tail: float, knot: float, screen: float) -> tuple[int, int, int, int]:
+    """A sweep's ``(window, tail, knot, screen)`` in 10 ms ticks, as :func:`sweep` takes them; ``knot`` must divide
+    ``window`` (both at least one tick) and ``tail`` must be >= 0."""
+    ticks = tuple(round(v / DT) for v in (window, tail, knot, screen))
+    if min(ticks[0], ticks[2]) < 1 or ticks[1] < 0 or ticks[0] % ticks[2]:
+        raise ValueError(f"knot ({knot} s) must divide window ({window} s); tail must be >= 0")
+    return ticks
+
+
 def sweep(
     group: SyncGroup,
     adjacency: np.ndarray,
@@ -261,8 +271,5 @@ def plan_alterations(
     tick = tick_model(group, adjacency, params)
     states, r = alteration_rollout(tick.mapaccum("roll", CHUNK), state, s)
     for window, tail, knot in sweeps:
-        ticks = tuple(round(v / DT) for v in (window, tail, knot, screen))
-        if min(ticks[0], ticks[2]) < 1 or ticks[1] < 0 or ticks[0] % ticks[2]:
-            raise ValueError(f"knot ({knot} s) must divide window ({window} s); tail must be >= 0")
-        sweep(group, adjacency, params, tick, (s, states, r), ticks, max_iter)
+        sweep(group, adjacency, params, tick, (s, states, r), sweep_ticks(window, tail, knot, screen), max_iter)
     return s, states, r
