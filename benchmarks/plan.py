@@ -5,31 +5,22 @@
   so ``ratio`` is the plan's cost in plain simulations. ``per_simulated_s`` is the plan's CPU per second of trial.
 * ``plan.<group>.r``: r with ``plan``; reference: r without L2.
 
-Groups: Table 2's group 1 (10 s) and the first three groups of the *validation* split (never the test split);
-``quick`` cuts every group to at most 20 s.
+Groups: those of :mod:`benchmarks.bound` (Table 2's group 1 and the first three of the *validation* split; ``quick``
+cuts every group to at most 20 s).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import time
 from collections.abc import Iterator
 
-from cogblocks.data.groups import TABLE2, random_groups
+from benchmarks.bound import plain_runs
 from cogblocks.diagrams.sync import MOTIONS, pop_sync
 from cogblocks.sim import Simulator
 
 
 def run(quick: bool = False) -> Iterator[dict]:
     """Yield the plan's CPU time per group against a plain simulation of that group, and its r."""
-    groups = {"group1": TABLE2[1]} | {f"validation{i}": g for i, g in enumerate(random_groups(3, "validation", 0))}
-    for label, group in groups.items():
-        if quick:
-            group = dataclasses.replace(group, duration=min(group.duration, 20.0))
-        n_steps = round(group.duration / 0.01) + 1
-        start = time.process_time()
-        r0 = float(Simulator(pop_sync(group, l2=False)).run(n_steps=n_steps)["r"].mean())
-        sim_s = time.process_time() - start
+    for label, group, n_steps, r0, sim_s in plain_runs(quick):
         block = MOTIONS["plan"](group)
         r = float(Simulator(pop_sync(group, motion=block)).run(n_steps=n_steps)["r"].mean())
         plan_s = (block.plan_ms or 0.0) / 1e3
