@@ -84,6 +84,12 @@ def _plan_motion(group: SyncGroup) -> Block:
     return PlannedMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
 
 
+def _replan_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import RecedingPlanMotion
+
+    return RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+
+
 def _guard_motion(group: SyncGroup) -> Block:
     from cogblocks.sync import GuardedPacingMotion
 
@@ -111,6 +117,7 @@ MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "mpc": _mpc_motion,
     "pace": _pace_motion,
     "plan": _plan_motion,
+    "replan": _replan_motion,
 }
 
 #: The motion computer :func:`pop_sync` uses when none is given (docs/pop-sync.md, "Default", says why).

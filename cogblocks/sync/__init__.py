@@ -2,8 +2,8 @@
 its stability check, the motion computers with their L3 policies and the group model they plan with,
 and the L2 architecture as one block.
 
-``DQNPolicy``, ``MPCMotion``, ``PlannedMotion`` and ``GroupIdentifier`` are imported on first use, so that this
-package loads without torch and without casadi.
+``DQNPolicy``, ``MPCMotion``, ``PlannedMotion``, ``RecedingPlanMotion`` and ``GroupIdentifier`` are imported on
+first use, so that this package loads without torch and without casadi.
 """
 
 import importlib
@@ -26,6 +26,7 @@ _LAZY = {
     "MPCMotion": "cogblocks.sync.mpc",
     "PacingMotion": "cogblocks.sync.pacing",
     "PlannedMotion": "cogblocks.sync.planned",
+    "RecedingPlanMotion": "cogblocks.sync.receding",
     "ShieldedMotion": "cogblocks.sync.shielded",
 }
 
@@ -50,6 +51,7 @@ __all__ = [
     "OrderParameter",
     "PacingMotion",
     "PlannedMotion",
+    "RecedingPlanMotion",
     "ShieldedMotion",
     "SyncModel",
     "check_blender",

@@ -31,7 +31,7 @@ from cogblocks.sync.model import DT, BlenderParams
 from cogblocks.sync.motion import _MotionPorts
 from cogblocks.sync.whole_run import plan_alterations, tick_model
 
-__all__ = ["SWEEPS", "PlannedMotion"]
+__all__ = ["SWEEPS", "PlannedMotion", "checked_sweeps"]
 
 #: Default ``sweeps`` (window, tail, knot in s): the bound's first sweep, then the thorough bound's three passes.
 #: Looked at on validation groups 0-59 of ``random_groups(600, "validation", 0)`` (docs/pop-sync.md).
@@ -104,7 +104,7 @@ class PlannedMotion(_MotionPorts):
             raise ValueError(f"PlannedMotion: blender must be a BlenderParams, got {type(blender).__name__}")
         self.blender = blender or BlenderParams()
         self.end = finite_number(self, "end", end, low=0.0, low_open=True)
-        self.sweeps = _checked_sweeps(sweeps)
+        self.sweeps = checked_sweeps(self, sweeps)
         self.min_ticks = positive_int(self, "min_ticks", min_ticks)
         self.min_excitation = finite_number(self, "min_excitation", min_excitation, low=0.0)
         self.max_iter = positive_int(self, "max_iter", max_iter)
@@ -171,17 +171,19 @@ class PlannedMotion(_MotionPorts):
         self.plan_ms = (time.thread_time() - start) * 1e3
 
 
-def _checked_sweeps(sweeps: Any) -> tuple[tuple[float, float, float], ...]:
+def checked_sweeps(block: object, sweeps: Any) -> tuple[tuple[float, float, float], ...]:
+    """``sweeps`` as (window, tail, knot) triples in s, checked for ``block``'s messages."""
+    name = type(block).__name__
     try:
         checked = tuple((float(w), float(t), float(k)) for w, t, k in sweeps)
     except (TypeError, ValueError):
-        raise ValueError(f"PlannedMotion: sweeps must be (window, tail, knot) triples in s, got {sweeps!r}") from None
+        raise ValueError(f"{name}: sweeps must be (window, tail, knot) triples in s, got {sweeps!r}") from None
     for w, t, k in checked:
         ticks = [round(v / DT) for v in (w, t, k)]
         if not (all(math.isfinite(v) for v in (w, t, k)) and min(ticks[0], ticks[2]) >= 1 and ticks[1] >= 0):
-            raise ValueError(f"PlannedMotion: a sweep needs window and knot >= {DT} s and tail >= 0, got {(w, t, k)}")
+            raise ValueError(f"{name}: a sweep needs window and knot >= {DT} s and tail >= 0, got {(w, t, k)}")
         if ticks[0] % ticks[2] or any(abs(v - n * DT) > 1e-9 for v, n in zip((w, t, k), ticks, strict=True)):
             raise ValueError(
-                f"PlannedMotion: a sweep's times must be multiples of {DT} s and knot divide window, got {(w, t, k)}"
+                f"{name}: a sweep's times must be multiples of {DT} s and knot divide window, got {(w, t, k)}"
             )
     return checked

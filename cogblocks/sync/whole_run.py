@@ -12,7 +12,8 @@ search with:
   closed loop on the same model in NumPy, all at once; :func:`switch_rules` the rules a window can switch to;
 * :func:`sweep`: block-coordinate ascent over consecutive windows (a rule switched to, or an IPOPT correction on
   knots), each step kept only if the mean r to the end rises;
-* :func:`plan_alterations`: the best rule from a given state, then sweeps: a plan for the rest of a run.
+* :func:`rule_plan`, :func:`refine_plan` and :func:`plan_alterations`: the best rule from a given state, then
+  sweeps (over the whole plan, or its first windows only): a plan for the rest of a run, or its next seconds.
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ __all__ = [
     "CHUNK",
     "alteration_rollout",
     "plan_alterations",
+    "refine_plan",
+    "rule_plan",
     "rule_rollouts",
     "state_rules",
     "sweep",
@@ -183,11 +186,13 @@ def sweep(
     incumbent: tuple[np.ndarray, np.ndarray, np.ndarray],
     ticks: tuple[int, int, int, int],
     max_iter: int,
+    span: int | None = None,
 ) -> int:
     """One block-coordinate sweep over the whole run, improving ``incumbent = (s, states, r)`` in place.
 
-    ``tick`` is :func:`tick_model`'s model of the group; ``ticks = (window, tail, knot, screen)``. Returns the number
-    of accepted steps.
+    ``tick`` is :func:`tick_model`'s model of the group; ``ticks = (window, tail, knot, screen)``; ``span`` (ticks)
+    limits the sweep to the windows that start within the run's first ``span`` ticks (all by default). Every step is
+    still judged on the mean r of the whole run. Returns the number of accepted steps.
     """
     s, states, r = incumbent
     window_ticks, tail_ticks, knot_ticks, screen_ticks = ticks
@@ -196,7 +201,7 @@ def sweep(
     solver, hats = _window_solver(tick, group.n, window_ticks, tail_ticks, knot_ticks, max_iter)
     length = window_ticks + tail_ticks
     accepted = 0
-    for start in range(0, n_steps, window_ticks):
+    for start in range(0, n_steps if span is None else min(n_steps, span), window_ticks):
         left = n_steps - start
         # 1. switch to a rule (held over the window, or `screen` s, then the incumbent again)
         r_rules, s_rules = switch_rules(group, adjacency, params, states[start], s[start], min(screen_ticks, left))
@@ -243,6 +248,46 @@ def state_rules(group: SyncGroup, state: np.ndarray) -> tuple[np.ndarray, np.nda
     return np.r_[0, 1, np.full(len(freq), 2)], np.r_[0.0, 0.0, phase0], np.r_[0.0, 0.0, freq]
 
 
+def rule_plan(
+    group: SyncGroup, adjacency: np.ndarray, params: BlenderParams, state: np.ndarray, n_ticks: int
+) -> np.ndarray:
+    """The alteration fractions of the :func:`state_rules` rule with the highest mean r over ``n_ticks`` from
+    ``state = (θ, λ)``."""
+    rules = state_rules(group, state)
+    sums, _ = rule_rollouts(group, adjacency, params, state, rules, n_ticks, record=False)
+    top = int(np.argmax(sums))
+    _, s = rule_rollouts(group, adjacency, params, state, tuple(v[top : top + 1] for v in rules), n_ticks, record=True)
+    return s[:, 0].copy()
+
+
+def refine_plan(
+    group: SyncGroup,
+    adjacency: np.ndarray,
+    params: BlenderParams,
+    state: np.ndarray,
+    s: np.ndarray,
+    sweeps: Sequence[tuple[float, float, float]],
+    *,
+    span: int | None = None,
+    screen: float = 10.0,
+    max_iter: int = 20,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The plan ``s`` (alteration fractions from ``state = (θ, λ)``) after one :func:`sweep` per
+    ``(window, tail, knot)`` of ``sweeps`` (s), each from the last one's result, over the windows that start
+    within the first ``span`` ticks (all by default). Every accepted step raises the plan's mean r.
+
+    Returns ``(s, states, r)``: the fractions, the state before each tick (``len(s)`` × (N + 1), λ last) and the
+    predicted r of each tick.
+    """
+    s = np.array(s, dtype=float)
+    tick = tick_model(group, adjacency, params)
+    states, r = alteration_rollout(tick.mapaccum("roll", CHUNK), state, s)
+    for window, tail, knot in sweeps:
+        ticks = sweep_ticks(window, tail, knot, screen)
+        sweep(group, adjacency, params, tick, (s, states, r), ticks, max_iter, span)
+    return s, states, r
+
+
 def plan_alterations(
     group: SyncGroup,
     adjacency: np.ndarray,
@@ -256,20 +301,11 @@ def plan_alterations(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A plan of ``n_ticks`` alteration fractions from ``state = (θ, λ)`` on ``group``'s model, its states, its r.
 
-    The best rule of :func:`state_rules` over the whole plan, then one :func:`sweep` per ``(window, tail, knot)``
-    of ``sweeps`` (s), each from the last one's result: every accepted step raises the plan's mean r, so the plan
-    is never predicted worse than doing nothing. Returns ``(s, states, r)``: the fractions, the state before each
-    tick (``n_ticks`` × (N + 1), λ last) and the predicted r of each tick.
+    The best rule of :func:`state_rules` over the whole plan (:func:`rule_plan`), then :func:`refine_plan`'s
+    sweeps over all of it: the plan is never predicted worse than doing nothing. Returns ``(s, states, r)`` as
+    :func:`refine_plan` does.
     """
     if n_ticks < 1:
         raise ValueError(f"a plan needs at least one tick, got {n_ticks}")
-    rules = state_rules(group, state)
-    sums, _ = rule_rollouts(group, adjacency, params, state, rules, n_ticks, record=False)
-    top = int(np.argmax(sums))
-    _, s = rule_rollouts(group, adjacency, params, state, tuple(v[top : top + 1] for v in rules), n_ticks, record=True)
-    s = s[:, 0].copy()
-    tick = tick_model(group, adjacency, params)
-    states, r = alteration_rollout(tick.mapaccum("roll", CHUNK), state, s)
-    for window, tail, knot in sweeps:
-        sweep(group, adjacency, params, tick, (s, states, r), sweep_ticks(window, tail, knot, screen), max_iter)
-    return s, states, r
+    s = rule_plan(group, adjacency, params, state, n_ticks)
+    return refine_plan(group, adjacency, params, state, s, sweeps, screen=screen, max_iter=max_iter)

@@ -735,7 +735,14 @@ register_l2_sync()
 
 
 def register_mpc() -> None:
-    from cogblocks.sync import GroupIdentifier, GuardedPacingMotion, MPCMotion, PacingMotion, PlannedMotion
+    from cogblocks.sync import (
+        GroupIdentifier,
+        GuardedPacingMotion,
+        MPCMotion,
+        PacingMotion,
+        PlannedMotion,
+        RecedingPlanMotion,
+    )
     from cogblocks.sync.pacing import PACE
 
     # one small problem (a single cached casadi build) whatever hypothesis draws
@@ -795,6 +802,25 @@ def register_mpc() -> None:
                 st.just(n),
                 st.integers(0, n - 1),
                 end=st.floats(0.05, 0.3),
+                sweeps=st.just(()),
+                min_ticks=st.integers(1, 3),
+                min_excitation=st.just(0.0),
+            )
+        ),
+        lambda b: {"theta": phase((b.n,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
+        ["theta", "lam"],
+        Policy(holds={"theta_ref": lambda b, ins, seen: not _usable(ins)}),
+    )
+    register(
+        RecedingPlanMotion,
+        st.integers(2, 5).flatmap(
+            lambda n: st.builds(
+                RecedingPlanMotion,
+                st.just(n),
+                st.integers(0, n - 1),
+                end=st.floats(0.05, 0.3),
+                decide_every=st.sampled_from([0.01, 0.02]),
+                horizon=st.just(0.05),
                 sweeps=st.just(()),
                 min_ticks=st.integers(1, 3),
                 min_excitation=st.just(0.0),

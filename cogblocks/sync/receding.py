@@ -1,0 +1,270 @@
+"""A motion computer that re-plans the next seconds of the trial every period, from the state it observes.
+
+:class:`RecedingPlanMotion` does nothing (θ_ref = θ_L0) while :class:`~cogblocks.sync.identification.KuramotoRLS`
+identifies the group's natural frequencies and coupling from the observed phases, and keeps identifying while it
+alters (the phases the group saw rebuilt from the θ_ref it emitted and the λ it received). Once the model is
+trusted it decides every ``decide_every`` seconds. A decision at tick k starts from the observed state (θ, λ),
+predicts the state at tick k + P (P the decision period) through the plan in force, and plans the alteration of
+every tick of ``[k + P, k + P + horizon)`` on the identified model with the whole-run search of
+:mod:`cogblocks.sync.whole_run`: warm-started from the plan in force (the first decision: from the best reference
+rule of :func:`~cogblocks.sync.whole_run.rule_plan`), then the window sweeps of ``sweeps`` over the windows that
+start within the period, every step kept only if the predicted mean r over the horizon rises. The new plan takes
+over at tick k + P; until then the plan in force plays: θ_ref = θ_L0 + a_j, a_j the alteration planned for tick j.
+
+So a decision has a whole period to finish. With ``worker="thread"`` it runs on a background thread (casadi and
+IPOPT release the GIL) and the block's own ticks only hand it the state and take its plan: what a live run at
+100 Hz needs. A decision not finished when its period ends is late: the plan in force goes on (it covers the
+horizon) and the block decides again as soon as the worker is free. With ``worker="inline"`` (the default, for
+simulations) the decision runs in the tick that starts it, so results do not depend on the machine's speed; a
+thread whose decisions are never late gives the same plans.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from cogblocks.blocks.angles import wrap_angle, wrap_pi
+from cogblocks.data.groups import SyncGroup
+from cogblocks.sim.params import finite_number, one_of, positive_int
+from cogblocks.sync.coupling import Coupling, checked_graph
+from cogblocks.sync.identification import KuramotoRLS, usable_phases
+from cogblocks.sync.model import DT, BlenderParams
+from cogblocks.sync.motion import _MotionPorts
+from cogblocks.sync.planned import checked_sweeps
+from cogblocks.sync.whole_run import refine_plan, rule_plan, tick_model
+
+__all__ = ["RECEDING_SWEEPS", "RecedingPlanMotion"]
+
+#: Default ``sweeps`` of a decision (window, tail, knot in s): the whole-run bound's first sweep.
+RECEDING_SWEEPS: tuple[tuple[float, float, float], ...] = ((4.0, 4.0, 0.25),)
+
+
+class RecedingPlanMotion(_MotionPorts):
+    """Identifies the group, then re-plans the next ``horizon`` seconds every ``decide_every`` seconds.
+
+    See the module docstring.
+
+    Parameters
+    ----------
+    n : int
+        Number of participants.
+    assisted : int
+        0-based index of the assisted participant.
+    end : float
+        Length of the trial (s from the block's first tick): no plan reaches past it.
+    adjacency : graph spec
+        The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a matrix), known to the block.
+    blender : BlenderParams
+        The blender the plan goes through (the deliverable's by default).
+    decide_every : float
+        The decision period (s, a multiple of the 10 ms tick): a decision takes effect one period after it starts.
+    horizon : float
+        How far a plan reaches (s): the predicted mean r over it is what a decision maximises.
+    sweeps : sequence of (window, tail, knot)
+        The window sweeps of a decision (s, multiples of the tick; ``knot`` divides ``window``), in order.
+    worker : {"inline", "thread"}
+        Where a decision runs: in the tick that starts it, or on a background thread (live runs).
+    min_ticks : int
+        Observed increments before the model is trusted.
+    min_excitation : float
+        Information on the gain (the least squares' Schur complement) before the model is trusted.
+    max_iter : int
+        IPOPT iterations per window.
+
+    Attributes
+    ----------
+    decide_ms : list of float
+        CPU time (ms) of every finished decision, on the thread that ran it (a record, not block state).
+    plans : list of (int, ndarray, ndarray)
+        Every plan put in force: its first tick, its alterations (rad) and its predicted r, tick by tick (a record,
+        not block state).
+    late : int
+        Decisions not finished when their period ended (a record, not block state).
+
+    Notes
+    -----
+    Plans are made on the simulation's 10 ms tick (:data:`~cogblocks.sync.model.DT`); the block refuses to run at
+    another. Bad data policy: on a tick with a phase that is not finite and within one turn of [0, 2π), or a
+    non-finite λ, nothing is identified or decided (a decision due then is made at the next good tick) and θ_ref
+    holds its last value. A finite λ outside the blender's [λ_min, λ_max] is clipped to it. A snapshot taken while
+    a thread decides does not hold that decision: the restored block decides again.
+    """
+
+    def __init__(
+        self,
+        n: int,
+        assisted: int,
+        *,
+        end: float,
+        adjacency: Any = "ring",
+        blender: BlenderParams | None = None,
+        decide_every: float = 2.0,
+        horizon: float = 30.0,
+        sweeps: Sequence[tuple[float, float, float]] = RECEDING_SWEEPS,
+        worker: str = "inline",
+        min_ticks: int = 100,
+        min_excitation: float = 1.0,
+        max_iter: int = 20,
+        period: float | None = None,
+    ) -> None:
+        super().__init__(n, assisted, period)
+        self.adjacency = np.asarray(Coupling(checked_graph(self, adjacency, n), n, sparse=False).matrix, dtype=float)
+        if blender is not None and not isinstance(blender, BlenderParams):
+            raise ValueError(f"RecedingPlanMotion: blender must be a BlenderParams, got {type(blender).__name__}")
+        self.blender = blender or BlenderParams()
+        self.end = finite_number(self, "end", end, low=0.0, low_open=True)
+        self.decide_ticks = _ticks(self, "decide_every", decide_every)
+        self.horizon_ticks = _ticks(self, "horizon", horizon)
+        if self.horizon_ticks < self.decide_ticks:
+            raise ValueError(
+                f"RecedingPlanMotion: horizon ({horizon} s) must be at least decide_every ({decide_every} s)"
+            )
+        self.sweeps = checked_sweeps(self, sweeps)
+        self.worker = one_of(self, "worker", worker, ("inline", "thread"))
+        self.min_ticks = positive_int(self, "min_ticks", min_ticks)
+        self.min_excitation = finite_number(self, "min_excitation", min_excitation, low=0.0)
+        self.max_iter = positive_int(self, "max_iter", max_iter)
+        self.rls = KuramotoRLS(self.adjacency)
+        self.others = np.arange(n) != self.assisted
+        self.add_state("count", 0)  # increments identified
+        self.add_state("info", self.rls.info)
+        self.add_state("rhs", self.rls.rhs)
+        self.add_state("previous", np.full(2 * n, math.nan))  # the phases seen and observed last tick (NaN: bad)
+        self.add_state("plan_s", None)  # the plan in force: alteration fractions of ticks plan_start, …
+        self.add_state("plan_a", None)  # … and its alterations (rad)
+        self.add_state("plan_start", -1)
+        self.add_state("pending", None)  # a decision's (s, a, start, r) until its plan starts
+        self.add_state("next_decision", -1)  # the first tick a decision may start (-1: as soon as identified)
+        self.add_state("theta_ref_now", 0.0)
+        self._executor: ThreadPoolExecutor | None = None
+        self._future: Future | None = None
+        self.decide_ms: list[float] = []
+        self.plans: list[tuple[int, np.ndarray, np.ndarray]] = []
+        self.late = 0
+
+    def reset(self) -> None:
+        super().reset()
+        self._future = None
+        self.decide_ms, self.plans, self.late = [], [], 0
+
+    def alteration(self, k: int) -> float:
+        """The alteration (rad) the plan in force gives tick ``k`` (0 outside it)."""
+        j = k - self.plan_start
+        return float(self.plan_a[j]) if self.plan_a is not None and 0 <= j < len(self.plan_a) else 0.0
+
+    def output(self, k: int) -> None:
+        theta = np.asarray(self.theta.value, dtype=float)
+        if usable_phases(theta):
+            self.theta_ref_now = wrap_angle(float(theta[self.assisted]) + self.alteration(k))
+        self.theta_ref.value[...] = self.theta_ref_now
+
+    def update(self, k: int) -> None:
+        self._take_decision(k)
+        theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
+        if not (usable_phases(theta) and math.isfinite(lam)):
+            self.previous[...] = math.nan
+            return
+        lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
+        dt = self.dt * self.every
+        self.rls.info, self.rls.rhs = self.info, self.rhs
+        n = self.n
+        if usable_phases(self.previous) and self.rls.observe(self.previous[:n], self.previous[n:], theta, dt):
+            self.count += 1
+        l0 = float(theta[self.assisted])
+        seen = theta.copy()
+        seen[self.assisted] = wrap_angle(l0 + min(max(float(wrap_pi(self.theta_ref_now - l0)), -lam), lam))
+        self.previous[:n], self.previous[n:] = seen, theta
+        if k < self.next_decision or self._future is not None or self.pending is not None:
+            return
+        if self.count < self.min_ticks or self.rls.gain_excitation() < self.min_excitation:
+            return
+        omega, gain = self.rls.estimate()
+        if not (np.isfinite(omega).all() and math.isfinite(gain)):
+            return
+        if abs(dt - DT) > 1e-12:
+            raise RuntimeError(f"RecedingPlanMotion plans on the {DT} s tick of cogblocks.sync.model.DT, not {dt} s")
+        start = k + self.decide_ticks
+        self.next_decision = start
+        stop = min(round(self.end / DT) + 1, start + self.horizon_ticks)
+        if stop <= start:
+            return
+        task = (omega.copy(), float(gain), np.r_[theta, lam], k, start, stop, self._committed())
+        if self.worker == "inline":
+            self.pending = self._decide(*task)
+            return
+        if self._executor is None:
+            self._executor = ThreadPoolExecutor(1, thread_name_prefix="cogblocks-replan")
+        self._future = self._executor.submit(self._decide, *task)
+
+    def _committed(self) -> tuple[np.ndarray, np.ndarray, int] | None:
+        """The plan in force (alterations, fractions, first tick), copied for a decision, or ``None``."""
+        if self.plan_a is None:
+            return None
+        return self.plan_a.copy(), self.plan_s.copy(), self.plan_start
+
+    def _take_decision(self, k: int) -> None:
+        """Collect a thread's decision; at the tick before a decision's plan starts, make it the plan in force.
+
+        A thread's decision still running then is late (counted once); its plan is dropped when it comes.
+        """
+        if self._future is not None:
+            if self._future.done():
+                self.pending, self._future = self._future.result(), None
+            elif k + 1 == self.next_decision:
+                self.late += 1
+        if self.pending is None:
+            return
+        s, a, start, r = self.pending
+        if k + 1 >= start:
+            if k + 1 == start:
+                self.plan_s, self.plan_a, self.plan_start = s, a, start
+                self.plans.append((start, a, r))
+            self.pending = None
+
+    def _decide(
+        self,
+        omega: np.ndarray,
+        gain: float,
+        state: np.ndarray,
+        k: int,
+        start: int,
+        stop: int,
+        committed: tuple[np.ndarray, np.ndarray, int] | None,
+    ) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+        """A decision at tick ``k`` from the observed ``state``: the plan of ticks [start, stop) as
+        ``(fractions, alterations, start, predicted r)``."""
+        clock = time.thread_time()
+        omega_hat = tuple(float(w) for w in omega)
+        model = SyncGroup("identified", self.n, gain, omega_hat, self.assisted, self.end, self.adjacency)
+        tick = tick_model(model, self.adjacency, self.blender)
+        x = np.asarray(state, dtype=float)
+        for j in range(k, start):  # through the plan in force to the new plan's first tick
+            i = -1 if committed is None else j - committed[2]
+            a = float(committed[0][i]) if committed is not None and 0 <= i < len(committed[0]) else 0.0
+            x = np.asarray(tick(x, min(max(a / x[self.n], -1.0), 1.0))[0], dtype=float).ravel()
+        n_ticks = stop - start
+        if committed is None:
+            warm = rule_plan(model, self.adjacency, self.blender, x, n_ticks)
+        else:
+            warm = np.zeros(n_ticks)
+            old = committed[1][start - committed[2] :][:n_ticks]
+            warm[: len(old)] = old
+        s, states, r = refine_plan(
+            model, self.adjacency, self.blender, x, warm, self.sweeps, span=self.decide_ticks, max_iter=self.max_iter
+        )
+        self.decide_ms.append((time.thread_time() - clock) * 1e3)
+        return s, states[:, self.n] * s, start, r
+
+
+def _ticks(block: RecedingPlanMotion, name: str, value: Any) -> int:
+    seconds = finite_number(block, name, value, low=0.0, low_open=True)
+    ticks = round(seconds / DT)
+    if ticks < 1 or abs(seconds - ticks * DT) > 1e-9:
+        raise ValueError(f"RecedingPlanMotion: {name} must be a positive multiple of {DT} s, got {value!r}")
+    return ticks
