@@ -287,8 +287,8 @@ def _build_parser() -> argparse.ArgumentParser:
         action="append",
         type=POLICY,
         metavar="NAME",
-        help="motion computer(s) to run: dqn, dqn_raw, guard, lookahead, mean, mpc, pace, plan (default: dqn, "
-        "lookahead, mean; with --random every one); repeatable",
+        help="motion computer(s) to run: dqn, dqn_raw, guard, lookahead, mean, mpc, pace, plan, replan "
+        "(default: dqn, lookahead, mean; with --random every one); repeatable",
     )
     sync.add_argument(
         "--domain",

@@ -295,6 +295,7 @@ CASES = [
     case("RecedingPlanMotion", "horizon", 0.005, "multiple of 0.01 s"),
     case("RecedingPlanMotion", "sweeps", [(4.0, 4.0)], "(window, tail, knot) triples", given="[(4.0, 4.0)]"),
     case("RecedingPlanMotion", "worker", "process", "one of"),
+    case("RecedingPlanMotion", "margin", -1.0, "[0.0, inf)"),
     case("RecedingPlanMotion", "min_ticks", 0, "integer >= 1"),
     case("RecedingPlanMotion", "min_excitation", -1.0, "[0.0, inf)"),
     case("RecedingPlanMotion", "max_iter", 0, "integer >= 1"),

@@ -19,7 +19,7 @@ from cogblocks.sync.whole_run import rule_rollouts
 BLENDER = BlenderParams()
 # validation group 4 (all-to-all, N = 3, unlocked), cut to 6 s: plans of 3 s every second, one cheap sweep
 GROUP = dataclasses.replace(random_groups(600, "validation", 0)[4], duration=6.0)
-OPTIONS = {"decide_every": 1.0, "horizon": 3.0, "sweeps": ((2.0, 2.0, 0.25),)}
+OPTIONS = {"decide_every": 1.0, "horizon": 3.0, "sweeps": ((2.0, 2.0, 0.25),), "min_ticks": 100}
 N_TICKS = round(GROUP.duration / 0.01) + 1
 PROBES = {"l0": "l2.theta_l0", "l2": "l2.theta_l2", "ref": "l2.theta_ref"}
 
