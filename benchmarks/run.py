@@ -38,6 +38,7 @@ MODULES = [
     "benchmarks.mpc",
     "benchmarks.bound",
     "benchmarks.plan",
+    "benchmarks.replan",
     "benchmarks.pace",
     "benchmarks.guard",
     "benchmarks.soak",

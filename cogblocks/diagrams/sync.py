@@ -22,6 +22,7 @@ __all__ = [
     "DEFAULT_MOTION",
     "DEFAULT_MOTIONS",
     "MOTIONS",
+    "live_motion",
     "phase_sensing",
     "plot_sync",
     "pop_sync",
@@ -126,6 +127,21 @@ DEFAULT_MOTION = "guard"
 #: What ``run_sync`` and ``cogblocks run sync --group N`` run without a policy list: the Table 3
 #: comparison as first published here (``mpc`` is slower and runs when asked for by name).
 DEFAULT_MOTIONS = ("dqn", "lookahead", "mean")
+
+
+def live_motion(name: str, group: SyncGroup) -> Block:
+    """The motion computer ``name`` of :data:`MOTIONS` for a live run of ``group``, of no fixed length.
+
+    ``replan`` decides on a worker thread (a decision does not fit a 10 ms tick) and plans ``horizon`` ahead
+    without a trial end; every other name is built as :data:`MOTIONS` builds it.
+    """
+    if name not in MOTIONS:
+        raise ValueError(f"live_motion: name must be one of {sorted(MOTIONS)}, got {name!r}")
+    if name == "replan":
+        from cogblocks.sync import RecedingPlanMotion
+
+        return RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=None, worker="thread")
+    return MOTIONS[name](group)
 
 
 def _group_of(group: int | SyncGroup) -> SyncGroup:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from cogblocks.data.groups import TABLE2
-from cogblocks.diagrams.sync import MOTIONS
+from cogblocks.diagrams.sync import MOTIONS, live_motion
 from cogblocks.live.inlet import LSLInlet
 from cogblocks.live.outlet import LSLOutlet
 from cogblocks.phase import PhaseEstimator
@@ -48,15 +48,16 @@ def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = 
 
     The L2 architecture of the PoP of Social Connectedness (:class:`~cogblocks.sync.L2Sync`)
     for a group of Table 2 (its size fixes the channel count) with the motion computer ``motion``
-    (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`; the trained DQN policy by default).
-    The inlet resamples the phases :data:`LAG` s back on the tick grid, along the circle.
+    (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`, built by :func:`~cogblocks.diagrams.sync.live_motion`;
+    the trained DQN policy by default). The inlet resamples the phases :data:`LAG` s back on the tick grid, along
+    the circle.
     """
     if group not in TABLE2:
         raise ValueError(f"live_sync: group must be one of {sorted(TABLE2)}, got {group!r}")
     params = TABLE2[group]
     if motion not in MOTIONS:
         raise ValueError(f"live_sync: motion must be one of {sorted(MOTIONS)}, got {motion!r}")
-    arch = L2Sync(MOTIONS[motion](params), params.assisted)
+    arch = L2Sync(live_motion(motion, params), params.assisted)
     inlet = LSLInlet(
         in_stream, shape=(params.n,), unit="rad", wrapped=True, mode="interpolate", lag=LAG, timeout=timeout
     )

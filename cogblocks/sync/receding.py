@@ -46,8 +46,9 @@ __all__ = ["MARGIN", "RECEDING_SWEEPS", "RecedingPlanMotion"]
 MARGIN = 1e-4
 
 #: Default ``sweeps`` of a decision (window, tail, knot in s): the whole-run bound's first sweep. With it, the defaults
-#: ``decide_every`` = 0.5 s and ``min_ticks`` = 50 were chosen on 24 short validation groups (docs/pop-sync.md,
-#: "Re-planning every half second (`replan`)").
+#: ``decide_every`` = 1 s (the shortest period a decision fits on every validation group tried, N = 15 all-to-all
+#: included), ``compare`` = 10 s and ``min_ticks`` = 50 were chosen on 24 short validation groups (docs/pop-sync.md,
+#: "Re-planning every second (`replan`)").
 RECEDING_SWEEPS: tuple[tuple[float, float, float], ...] = ((4.0, 4.0, 0.25),)
 
 
@@ -62,8 +63,9 @@ class RecedingPlanMotion(_MotionPorts):
         Number of participants.
     assisted : int
         0-based index of the assisted participant.
-    end : float
-        Length of the trial (s from the block's first tick): no plan reaches past it.
+    end : float or None
+        Length of the trial (s from the block's first tick): no plan reaches past it. ``None``: no known end (a live
+        session), every plan reaches ``horizon`` ahead.
     adjacency : graph spec
         The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a matrix), known to the block.
     blender : BlenderParams
@@ -72,6 +74,8 @@ class RecedingPlanMotion(_MotionPorts):
         The decision period (s, a multiple of the 10 ms tick): a decision takes effect one period after it starts.
     horizon : float
         How far a plan reaches (s): the predicted mean r over it is what a decision maximises.
+    compare : float
+        How far ahead (s) the first decision compares the reference rules it starts from.
     sweeps : sequence of (window, tail, knot)
         The window sweeps of a decision (s, multiples of the tick; ``knot`` divides ``window``), in order.
     worker : {"inline", "thread"}
@@ -110,11 +114,12 @@ class RecedingPlanMotion(_MotionPorts):
         n: int,
         assisted: int,
         *,
-        end: float,
+        end: float | None,
         adjacency: Any = "ring",
         blender: BlenderParams | None = None,
-        decide_every: float = 0.5,
+        decide_every: float = 1.0,
         horizon: float = 30.0,
+        compare: float = 10.0,
         sweeps: Sequence[tuple[float, float, float]] = RECEDING_SWEEPS,
         worker: str = "inline",
         margin: float = MARGIN,
@@ -128,13 +133,14 @@ class RecedingPlanMotion(_MotionPorts):
         if blender is not None and not isinstance(blender, BlenderParams):
             raise ValueError(f"RecedingPlanMotion: blender must be a BlenderParams, got {type(blender).__name__}")
         self.blender = blender or BlenderParams()
-        self.end = finite_number(self, "end", end, low=0.0, low_open=True)
+        self.end = None if end is None else finite_number(self, "end", end, low=0.0, low_open=True)
         self.decide_ticks = _ticks(self, "decide_every", decide_every)
         self.horizon_ticks = _ticks(self, "horizon", horizon)
         if self.horizon_ticks < self.decide_ticks:
             raise ValueError(
                 f"RecedingPlanMotion: horizon ({horizon} s) must be at least decide_every ({decide_every} s)"
             )
+        self.compare_ticks = _ticks(self, "compare", compare)
         self.sweeps = checked_sweeps(self, sweeps)
         self.worker = one_of(self, "worker", worker, ("inline", "thread"))
         self.margin = finite_number(self, "margin", margin, low=0.0)
@@ -202,7 +208,11 @@ class RecedingPlanMotion(_MotionPorts):
             raise RuntimeError(f"RecedingPlanMotion plans on the {DT} s tick of cogblocks.sync.model.DT, not {dt} s")
         start = k + self.decide_ticks
         self.next_decision = start
-        stop = min(round(self.end / DT) + 1, start + self.horizon_ticks)
+        stop = (
+            start + self.horizon_ticks
+            if self.end is None
+            else min(round(self.end / DT) + 1, start + self.horizon_ticks)
+        )
         if stop <= start:
             return
         task = (omega.copy(), float(gain), np.r_[theta, lam], k, start, stop, self._committed())
@@ -252,7 +262,7 @@ class RecedingPlanMotion(_MotionPorts):
         ``(fractions, alterations, start, predicted r)``."""
         clock = time.thread_time()
         omega_hat = tuple(float(w) for w in omega)
-        model = SyncGroup("identified", self.n, gain, omega_hat, self.assisted, self.end, self.adjacency)
+        model = SyncGroup("identified", self.n, gain, omega_hat, self.assisted, stop * DT, self.adjacency)
         tick = tick_model(model, self.adjacency, self.blender)
         x = np.asarray(state, dtype=float)
         for j in range(k, start):  # through the plan in force to the new plan's first tick
@@ -263,7 +273,7 @@ class RecedingPlanMotion(_MotionPorts):
         roll = tick.mapaccum("roll", CHUNK)
         nothing = float(alteration_rollout(roll, x, np.zeros(n_ticks))[1].mean())
         if committed is None:
-            warm = rule_plan(model, self.adjacency, self.blender, x, n_ticks)
+            warm = rule_plan(model, self.adjacency, self.blender, x, n_ticks, self.compare_ticks)
         else:
             warm = np.zeros(n_ticks)
             old = committed[1][start - committed[2] :][:n_ticks]

@@ -249,12 +249,18 @@ def state_rules(group: SyncGroup, state: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 def rule_plan(
-    group: SyncGroup, adjacency: np.ndarray, params: BlenderParams, state: np.ndarray, n_ticks: int
+    group: SyncGroup,
+    adjacency: np.ndarray,
+    params: BlenderParams,
+    state: np.ndarray,
+    n_ticks: int,
+    compare_ticks: int | None = None,
 ) -> np.ndarray:
-    """The alteration fractions of the :func:`state_rules` rule with the highest mean r over ``n_ticks`` from
-    ``state = (θ, λ)``."""
+    """The alteration fractions over ``n_ticks`` from ``state = (θ, λ)`` of the :func:`state_rules` rule with the
+    highest mean r over the first ``compare_ticks`` of them (all by default)."""
     rules = state_rules(group, state)
-    sums, _ = rule_rollouts(group, adjacency, params, state, rules, n_ticks, record=False)
+    compared = n_ticks if compare_ticks is None else min(n_ticks, compare_ticks)
+    sums, _ = rule_rollouts(group, adjacency, params, state, rules, compared, record=False)
     top = int(np.argmax(sums))
     _, s = rule_rollouts(group, adjacency, params, state, tuple(v[top : top + 1] for v in rules), n_ticks, record=True)
     return s[:, 0].copy()

@@ -175,3 +175,28 @@ def test_sync_and_l1_run_live_as_they_run_offline(lsl, streamer, stream_name):
             arch = L1(0.1 + LAG, estimator=KalmanEstimator("ca", dims=3))
             offline = _offline(("p", "p_avatar"), arch, report.trace["sample"], "mm")
             np.testing.assert_allclose(offline, report.trace["p_avatar"], rtol=0, atol=1e-9, equal_nan=True)
+
+
+def test_replan_decides_on_its_thread_live_and_plays_what_it_would_offline(lsl, streamer, stream_name):
+    from cogblocks.data.groups import TABLE2
+    from cogblocks.live import live_sync, run_realtime
+    from cogblocks.sync import L2Sync, RecedingPlanMotion
+
+    group = TABLE2[1]
+    omega = np.asarray(group.omega)
+    streamer(f"{stream_name}-phases", lambda t: np.mod(omega * t, 2 * np.pi), channels=group.n, unit="rad")
+    sync = live_sync(f"{stream_name}-phases", f"{stream_name}-theta-l2", group=1, motion="replan").compile(0.01)
+    (block,) = [b for b in sync.blocks.values() if isinstance(b, RecedingPlanMotion)]
+    assert block.worker == "thread" and block.end is None
+    report = run_realtime(sync, 3.0, record=True)
+    assert report.ticks == report.samples_out == 300
+    # decisions every second from the 50th good increment, none late: each plan started when it was due
+    assert block.late == 0 and len(block.plans) >= 2, (block.late, block.decide_ms, [p[0] for p in block.plans])
+    assert all(b - a == 100 for (a, _, _), (b, _, _) in zip(block.plans, block.plans[1:], strict=False))
+    # the same samples offline, deciding inline: the same plans, so the same θ_L2 to the bit
+    offline_block = RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=None)
+    offline = _offline(
+        ("theta", "theta_l2"), L2Sync(offline_block, group.assisted), report.trace["sample"], "rad", wrapped=True
+    )
+    np.testing.assert_allclose(offline, report.trace["theta_l2"], rtol=0, atol=1e-12)
+    assert [p[0] for p in offline_block.plans] == [p[0] for p in block.plans]
