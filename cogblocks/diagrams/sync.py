@@ -22,7 +22,6 @@ __all__ = [
     "DEFAULT_MOTION",
     "DEFAULT_MOTIONS",
     "MOTIONS",
-    "live_motion",
     "phase_sensing",
     "plot_sync",
     "pop_sync",
@@ -98,17 +97,13 @@ def _guard_motion(group: SyncGroup) -> Block:
     return GuardedPacingMotion.for_trial(group.n, group.assisted, adjacency=group.graph, end=group.duration)
 
 
-#: Motion computers available by name: each builds a fresh block for a group.
-#: ``dqn_raw`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --randomised --seed 0``),
-#: ``dqn`` the same network behind a shield (:class:`~cogblocks.sync.shielded.ShieldedMotion`: followed only while
-#: a prediction on the group identified online says it does not lower r, else doing nothing),
-#: ``lookahead`` plans 25 ticks ahead on the group's model (no training), ``mean`` follows
-#: the circular mean of the others' phases (no training, no model), ``mpc`` re-plans θ_ref over 3 s
-#: every 0.5 s with casadi on a model it identifies online, ``pace`` chooses every period between doing
-#: nothing, the circular mean and constant pacing frequencies by simulating that identified model seconds
-#: ahead (no oracle, no training), ``plan`` identifies the group for 1 s, then plans the rest of the trial at
-#: once with the bound's search and plays it (offline: the plan takes seconds of CPU). Add an entry to make a
-#: policy available to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
+#: Motion computers available by name: each builds a fresh block for a group. ``dqn_raw`` is the trained L3 policy
+#: (``python -m cogblocks.training.sync_dqn --randomised --seed 0``), ``dqn`` the same behind a shield (followed only
+#: while a prediction on the group identified online says it does not lower r); ``lookahead`` plans 25 ticks ahead on
+#: the true model; ``mean`` follows the others' circular mean; ``mpc``, ``pace``, ``guard`` and ``replan`` plan on a
+#: model they identify online (``replan`` re-plans 30 s ahead every second with the bound's search); ``plan`` plans
+#: the whole trial at once with it (offline: seconds of CPU in one tick). Add an entry to make a policy available to
+#: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
     "dqn_raw": _dqn_raw_motion,
@@ -127,21 +122,6 @@ DEFAULT_MOTION = "guard"
 #: What ``run_sync`` and ``cogblocks run sync --group N`` run without a policy list: the Table 3
 #: comparison as first published here (``mpc`` is slower and runs when asked for by name).
 DEFAULT_MOTIONS = ("dqn", "lookahead", "mean")
-
-
-def live_motion(name: str, group: SyncGroup) -> Block:
-    """The motion computer ``name`` of :data:`MOTIONS` for a live run of ``group``, of no fixed length.
-
-    ``replan`` decides on a worker thread (a decision does not fit a 10 ms tick) and plans ``horizon`` ahead
-    without a trial end; every other name is built as :data:`MOTIONS` builds it.
-    """
-    if name not in MOTIONS:
-        raise ValueError(f"live_motion: name must be one of {sorted(MOTIONS)}, got {name!r}")
-    if name == "replan":
-        from cogblocks.sync import RecedingPlanMotion
-
-        return RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=None, worker="thread")
-    return MOTIONS[name](group)
 
 
 def _group_of(group: int | SyncGroup) -> SyncGroup:

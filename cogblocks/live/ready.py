@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from cogblocks.data.groups import TABLE2
-from cogblocks.diagrams.sync import MOTIONS, live_motion
+from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.diagrams.sync import MOTIONS
 from cogblocks.live.inlet import LSLInlet
 from cogblocks.live.outlet import LSLOutlet
 from cogblocks.phase import PhaseEstimator
@@ -11,7 +11,7 @@ from cogblocks.sensing import L1, KalmanEstimator
 from cogblocks.sim import Block, Diagram
 from cogblocks.sync import L2Sync
 
-__all__ = ["LAG", "LIVE_DIAGRAMS", "live_l1", "live_phase", "live_sync"]
+__all__ = ["LAG", "LIVE_DIAGRAMS", "live_l1", "live_motion", "live_phase", "live_sync"]
 
 #: How far back the inlets read a stream: a 100 Hz sample period plus transport and jitter, so that
 #: two received samples surround the time read and the blocks see the stream on a regular grid.
@@ -43,12 +43,27 @@ def live_phase(in_stream: str, out_stream: str, *, unit: str = "mm", timeout: fl
     return _wire(PhaseEstimator(unit=unit), "p", "theta", inlet, LSLOutlet(out_stream, stream_type="Phase"))
 
 
+def live_motion(name: str, group: SyncGroup) -> Block:
+    """The motion computer ``name`` of :data:`MOTIONS` for a live run of ``group``, of no fixed length.
+
+    ``replan`` decides on a worker thread (a decision does not fit a 10 ms tick) and plans ``horizon`` ahead
+    without a trial end; every other name is built as :data:`MOTIONS` builds it.
+    """
+    if name not in MOTIONS:
+        raise ValueError(f"live_motion: name must be one of {sorted(MOTIONS)}, got {name!r}")
+    if name == "replan":
+        from cogblocks.sync import RecedingPlanMotion
+
+        return RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=None, worker="thread")
+    return MOTIONS[name](group)
+
+
 def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = "dqn", timeout: float = 5.0) -> Diagram:
     """The participants' phases in (one channel each, rad), the avatar's phase θ_L2 out.
 
     The L2 architecture of the PoP of Social Connectedness (:class:`~cogblocks.sync.L2Sync`)
     for a group of Table 2 (its size fixes the channel count) with the motion computer ``motion``
-    (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`, built by :func:`~cogblocks.diagrams.sync.live_motion`;
+    (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`, built by :func:`live_motion`;
     the trained DQN policy by default). The inlet resamples the phases :data:`LAG` s back on the tick grid, along
     the circle.
     """

@@ -170,6 +170,12 @@ class RecedingPlanMotion(_MotionPorts):
         self._future = None
         self.decide_ms, self.plans, self.late = [], [], 0
 
+    def close(self) -> None:
+        """Stop the worker thread (a decision still running is dropped); a later decision starts a new one."""
+        if self._executor is not None:
+            self._executor.shutdown(wait=False, cancel_futures=True)
+        self._executor, self._future = None, None
+
     def alteration(self, k: int) -> float:
         """The alteration (rad) the plan in force gives tick ``k`` (0 outside it)."""
         j = k - self.plan_start

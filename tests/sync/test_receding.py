@@ -139,6 +139,8 @@ def test_a_late_decision_is_counted_and_dropped_while_the_plan_in_force_goes_on(
     start, a, _ = block.plans[0]
     assert start == 450  # (later decisions may be late: this simulation runs faster than real time)
     np.testing.assert_allclose(_wrap(second["l2"] - second["l0"])[99:199], a[:100], rtol=0, atol=1e-9)
+    block.close()
+    assert block._executor is None and block._future is None
 
 
 def test_a_bad_tick_identifies_nothing_and_theta_ref_holds():
