@@ -176,3 +176,15 @@ def test_the_block_plans_only_on_the_10_ms_tick():
 def test_bad_options_are_refused_with_a_clear_message(options, message):
     with pytest.raises(ValueError, match=message):
         _block(**options)
+
+
+def test_a_plan_that_does_not_beat_doing_nothing_by_the_margin_is_not_played():
+    without = _run(_block(), l2=False)["r"]
+    altered = _block()  # the default margin, 1e-4: this unlocked group's plans gain far more
+    _run(altered)
+    assert any(np.any(a != 0.0) for _, a, _ in altered.plans)
+    idle = _block(margin=1.0)  # more than r can gain: every decision is to do nothing
+    trace = _run(idle)
+    assert len(idle.plans) == 5 and all(np.all(a == 0.0) for _, a, _ in idle.plans)
+    np.testing.assert_array_equal(_wrap(trace["l2"] - trace["l0"]), 0.0)
+    np.testing.assert_allclose(trace["r"], without, rtol=0, atol=1e-12)
