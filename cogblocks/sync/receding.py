@@ -11,7 +11,9 @@ rule of :func:`~cogblocks.sync.whole_run.rule_plan`), then the window sweeps of 
 start within the period, every step kept only if the predicted mean r over the horizon rises. The new plan takes
 over at tick k + P; until then the plan in force plays: θ_ref = θ_L0 + a_j, a_j the alteration planned for tick j.
 
-So a decision has a whole period to finish. With ``worker="thread"`` it runs on a background thread (casadi and
+The tick model carries the identified ω and K in its state (:func:`~cogblocks.sync.whole_run.identified_tick_model`),
+so its rollouts and expanded window solvers are built once per block and reused by every decision (on a thread,
+when the diagram is compiled). So a decision has a whole period to finish. With ``worker="thread"`` it runs on a background thread (casadi and
 IPOPT release the GIL) and the block's own ticks only hand it the state and take its plan: what a live run at
 100 Hz needs. A decision not finished when its period ends is late: the plan in force goes on (it covers the
 horizon) and the block decides again as soon as the worker is free. With ``worker="inline"`` (the default, for
@@ -27,6 +29,7 @@ from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
+import casadi as ca
 import numpy as np
 
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
@@ -37,7 +40,15 @@ from cogblocks.sync.identification import KuramotoRLS, usable_phases
 from cogblocks.sync.model import DT, BlenderParams
 from cogblocks.sync.motion import _MotionPorts
 from cogblocks.sync.planned import checked_sweeps
-from cogblocks.sync.whole_run import CHUNK, alteration_rollout, refine_plan, rule_plan, tick_model
+from cogblocks.sync.whole_run import (
+    alteration_rollout,
+    identified_tick_model,
+    refine_plan,
+    rollout_function,
+    rule_plan,
+    sweep_solvers,
+    sweep_ticks,
+)
 
 __all__ = ["MARGIN", "RECEDING_SWEEPS", "RecedingPlanMotion"]
 
@@ -159,6 +170,8 @@ class RecedingPlanMotion(_MotionPorts):
         self.add_state("pending", None)  # a decision's (s, a, start, r) until its plan starts
         self.add_state("next_decision", -1)  # the first tick a decision may start (-1: as soon as identified)
         self.add_state("theta_ref_now", 0.0)
+        self._model: ca.Function | None = None  # identified_tick_model, and the solvers built on it
+        self._solvers: dict = {}
         self._executor: ThreadPoolExecutor | None = None
         self._future: Future | None = None
         self.decide_ms: list[float] = []
@@ -169,6 +182,14 @@ class RecedingPlanMotion(_MotionPorts):
         super().reset()
         self._future = None
         self.decide_ms, self.plans, self.late = [], [], 0
+
+    def setup(self) -> None:
+        super().setup()
+        if self.worker == "thread":  # build the solvers now: the first decision has a period, not seconds
+            tick = self._tick()
+            rollout_function(tick, self._solvers)
+            for window, tail, knot in self.sweeps:
+                sweep_solvers(tick, sweep_ticks(window, tail, knot, 10.0), self.max_iter, self._solvers)
 
     def close(self) -> None:
         """Stop the worker thread (a decision still running is dropped); a later decision starts a new one."""
@@ -254,6 +275,13 @@ class RecedingPlanMotion(_MotionPorts):
                 self.plans.append((start, a, r))
             self.pending = None
 
+    def _tick(self) -> ca.Function:
+        """The group's tick model with ω and K in the state, built once: decisions reuse its solvers."""
+        if self._model is None:
+            self._model = identified_tick_model(self.n, self.assisted, self.adjacency, self.blender)
+            self._solvers = {}
+        return self._model
+
     def _decide(
         self,
         omega: np.ndarray,
@@ -269,14 +297,14 @@ class RecedingPlanMotion(_MotionPorts):
         clock = time.thread_time()
         omega_hat = tuple(float(w) for w in omega)
         model = SyncGroup("identified", self.n, gain, omega_hat, self.assisted, stop * DT, self.adjacency)
-        tick = tick_model(model, self.adjacency, self.blender)
-        x = np.asarray(state, dtype=float)
+        tick = self._tick()
+        x = np.r_[np.asarray(state, dtype=float), omega, gain]  # ω and K ride in the state of the one tick model
         for j in range(k, start):  # through the plan in force to the new plan's first tick
             i = -1 if committed is None else j - committed[2]
             a = float(committed[0][i]) if committed is not None and 0 <= i < len(committed[0]) else 0.0
             x = np.asarray(tick(x, min(max(a / x[self.n], -1.0), 1.0))[0], dtype=float).ravel()
         n_ticks = stop - start
-        roll = tick.mapaccum("roll", CHUNK)
+        roll = rollout_function(tick, self._solvers)
         nothing = float(alteration_rollout(roll, x, np.zeros(n_ticks))[1].mean())
         if committed is None:
             warm = rule_plan(model, self.adjacency, self.blender, x, n_ticks, self.compare_ticks)
@@ -285,7 +313,16 @@ class RecedingPlanMotion(_MotionPorts):
             old = committed[1][start - committed[2] :][:n_ticks]
             warm[: len(old)] = old
         s, states, r = refine_plan(
-            model, self.adjacency, self.blender, x, warm, self.sweeps, span=self.decide_ticks, max_iter=self.max_iter
+            model,
+            self.adjacency,
+            self.blender,
+            x,
+            warm,
+            self.sweeps,
+            span=self.decide_ticks,
+            max_iter=self.max_iter,
+            tick=tick,
+            solvers=self._solvers,
         )
         if r.mean() <= nothing + self.margin:  # too little predicted to trust the model with: do nothing
             s = np.zeros(n_ticks)
