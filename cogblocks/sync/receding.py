@@ -13,12 +13,12 @@ over at tick k + P; until then the plan in force plays: θ_ref = θ_L0 + a_j, a_
 
 The tick model carries the identified ω and K in its state (:func:`~cogblocks.sync.whole_run.identified_tick_model`),
 so its rollouts and expanded window solvers are built once per block and reused by every decision (on a thread,
-when the diagram is compiled). So a decision has a whole period to finish. With ``worker="thread"`` it runs on a background thread (casadi and
-IPOPT release the GIL) and the block's own ticks only hand it the state and take its plan: what a live run at
-100 Hz needs. A decision not finished when its period ends is late: the plan in force goes on (it covers the
-horizon) and the block decides again as soon as the worker is free. With ``worker="inline"`` (the default, for
-simulations) the decision runs in the tick that starts it, so results do not depend on the machine's speed; a
-thread whose decisions are never late gives the same plans.
+when the diagram is compiled). A decision has a whole period to finish. With ``worker="thread"`` it runs on a
+background thread (casadi and IPOPT release the GIL) and the block's own ticks only hand it the state and take its
+plan: what a live run at 100 Hz needs. A decision not finished when its period ends is late: the plan in force goes
+on (it covers the horizon) and the block decides again as soon as the worker is free. With ``worker="inline"`` (the
+default, for simulations) the decision runs in the tick that starts it, so results do not depend on the machine's
+speed; a thread whose decisions are never late gives the same plans.
 """
 
 from __future__ import annotations
