@@ -189,6 +189,7 @@ def test_replan_decides_on_its_thread_live_and_plays_what_it_would_offline(lsl, 
     (block,) = [b for b in sync.blocks.values() if isinstance(b, RecedingPlanMotion)]
     assert block.worker == "thread" and block.end is None
     report = run_realtime(sync, 3.0, record=True)
+    block.close()
     assert report.ticks == report.samples_out == 300
     # decisions every second from the 50th good increment, none late: each plan started when it was due
     assert block.late == 0 and len(block.plans) >= 2, (block.late, block.decide_ms, [p[0] for p in block.plans])

@@ -105,6 +105,7 @@ def test_on_a_thread_in_real_time_the_plans_are_those_made_inline():
     d = pop_sync(GROUP, motion=threaded)
     d.expose_output("r", "order.r")
     report = run_realtime(d.compile(0.01), N_TICKS / 100.0, record=True)
+    threaded.close()
     assert threaded.late == 0 and len(threaded.decide_ms) == 5
     assert [start for start, _, _ in threaded.plans] == [start for start, _, _ in inline.plans]
     np.testing.assert_allclose(report.trace["r"], expected, rtol=0, atol=1e-12)
