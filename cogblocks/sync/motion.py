@@ -25,6 +25,8 @@ from cogblocks.blocks.specs import PHASE
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, positive_int
 from cogblocks.sync.coupling import Coupling, checked_graph
+from cogblocks.sync.identification import KuramotoRLS
+from cogblocks.sync.model import BlenderParams
 
 __all__ = [
     "ACTIONS",
@@ -121,6 +123,35 @@ class _MotionPorts(Block):
         self.add_output("theta_ref", PHASE)
 
     _theta_feedthrough = True
+
+
+class _IdentifyingMotion(_MotionPorts):
+    """The ports, and what every motion computer that identifies the group online shares.
+
+    ``adjacency`` (a graph spec) becomes the dense matrix the models run on, ``blender`` (a
+    :class:`~cogblocks.sync.model.BlenderParams`, the deliverable's by default) the blender they plan through,
+    and :class:`~cogblocks.sync.identification.KuramotoRLS` the identifier, whose sums ``info`` and ``rhs`` and
+    count of increments ``count`` are block state, so that a snapshot holds what has been identified.
+    """
+
+    def __init__(
+        self, n: int, assisted: int, period: float | None, adjacency: Any, blender: Any, forgetting: float = 1.0
+    ) -> None:
+        super().__init__(n, assisted, period)
+        coupling = Coupling(checked_graph(self, adjacency, self.n), self.n, sparse=False)
+        self.adjacency = np.asarray(coupling.matrix, dtype=float)
+        if blender is not None and not isinstance(blender, BlenderParams):
+            raise ValueError(f"{type(self).__name__}: blender must be a BlenderParams, got {type(blender).__name__}")
+        self.blender: BlenderParams = blender or BlenderParams()
+        self.rls = KuramotoRLS(self.adjacency, forgetting=forgetting)
+        self.add_state("count", 0)  # increments identified
+        self.add_state("info", self.rls.info)
+        self.add_state("rhs", self.rls.rhs)
+
+    def identifier(self) -> KuramotoRLS:
+        """The identifier, on this tick's state (a restored snapshot replaces the state's arrays)."""
+        self.rls.info, self.rls.rhs = self.info, self.rhs
+        return self.rls
 
 
 class MeanPhaseMotion(_MotionPorts):

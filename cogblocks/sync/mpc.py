@@ -37,10 +37,9 @@ import numpy as np
 
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
 from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
-from cogblocks.sync.group import ring_adjacency
-from cogblocks.sync.identification import KuramotoRLS, usable_phases
+from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import BlenderParams
-from cogblocks.sync.motion import OMEGA_L3_LIMIT, _MotionPorts
+from cogblocks.sync.motion import OMEGA_L3_LIMIT, _IdentifyingMotion
 from cogblocks.sync.prediction import rk4_step, seen_order, sync_ode
 
 __all__ = ["MPCMotion"]
@@ -98,7 +97,7 @@ def _planner(
     return solver, screen
 
 
-class MPCMotion(_MotionPorts):
+class MPCMotion(_IdentifyingMotion):
     """Model-predictive motion computer: re-plans θ_ref's frequency every period to maximise the predicted r.
 
     See the module docstring for the problem. Decisions are taken in the update phase of ticks
@@ -122,8 +121,9 @@ class MPCMotion(_MotionPorts):
         Number of participants.
     assisted : int
         0-based index of the assisted participant.
-    adjacency : "ring" or array_like
-        The group's graph (known to the block).
+    adjacency : graph spec
+        The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a weighted, possibly directed
+        matrix), known to the block.
     omega, gain : array_like and float, optional
         The true model; both or neither. Without them the block identifies the group online.
     blender : BlenderParams
@@ -197,20 +197,14 @@ class MPCMotion(_MotionPorts):
         min_ticks: int = 5,
         period: float | None = None,
     ) -> None:
-        super().__init__(n, assisted, period)
-        if isinstance(adjacency, str):
-            one_of(self, "adjacency", adjacency, ("ring",))
-            adjacency = ring_adjacency(n)
-        self.adjacency = finite_array(self, "adjacency", adjacency, shape=(n, n))
+        forgetting = finite_number(self, "forgetting", forgetting, low=0.0, high=1.0, low_open=True)
+        super().__init__(n, assisted, period, adjacency, blender, forgetting)
         if (omega is None) != (gain is None):
             raise ValueError("MPCMotion: omega and gain must be given together (the true model) or not at all")
         self.true_model = None
         if omega is not None:
             omega = finite_array(self, "omega", omega, shape=(n,))
             self.true_model = (omega, finite_number(self, "gain", gain, low=0.0))
-        if blender is not None and not isinstance(blender, BlenderParams):
-            raise ValueError(f"MPCMotion: blender must be a BlenderParams, got {type(blender).__name__}")
-        self.blender = blender or BlenderParams()
         self.replan_every = positive_int(self, "replan_every", replan_every)
         self.knots = positive_int(self, "knots", knots)
         self.step = finite_number(self, "step", step, low=0.0, low_open=True)
@@ -220,17 +214,12 @@ class MPCMotion(_MotionPorts):
         self.time_limit_ms = finite_number(self, "time_limit_ms", time_limit_ms, low=0.0, low_open=True)
         self.max_iter = positive_int(self, "max_iter", max_iter)
         self.iterations_per_tick = positive_int(self, "iterations_per_tick", iterations_per_tick)
-        forgetting = finite_number(self, "forgetting", forgetting, low=0.0, high=1.0, low_open=True)
         self.min_ticks = positive_int(self, "min_ticks", min_ticks, minimum=0)
-        self.rls = KuramotoRLS(self.adjacency, forgetting=forgetting)
         self.others = np.array([j for j in range(n) if j != self.assisted])
         self.add_state("theta_ref_now", 0.0)
         self.add_state("plan", np.full(knots + 1, math.nan))  # committed knot then the free ones; NaN: no plan
         self.add_state("plan_tick", 0)  # tick at which the plan's committed knot starts
         self.add_state("due", True)  # a decision is due at the next good tick
-        self.add_state("info", self.rls.info)
-        self.add_state("rhs", self.rls.rhs)
-        self.add_state("count", 0)
         self.add_state("previous", np.full(n + n, math.nan))  # θ̃ and own phases of the last good tick
         self.add_state("fallbacks", 0)
         # the solve in progress: iterate, bound multipliers, parameters, box, iterations done, the plan's cost
@@ -278,8 +267,7 @@ class MPCMotion(_MotionPorts):
             return self.true_model
         if self.count < self.min_ticks:
             return None
-        self.rls.info, self.rls.rhs = self.info, self.rhs
-        return self.rls.estimate()
+        return self.identifier().estimate()
 
     def update(self, k: int) -> None:
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
@@ -316,9 +304,8 @@ class MPCMotion(_MotionPorts):
         """Add this tick's increment to the least squares; remember θ̃ (θ_L2 rebuilt from θ_ref and λ)."""
         if self.true_model is not None:
             return
-        self.rls.info, self.rls.rhs = self.info, self.rhs
         n = self.n
-        if usable_phases(self.previous) and self.rls.observe(
+        if usable_phases(self.previous) and self.identifier().observe(
             self.previous[:n], self.previous[n:], theta, self.dt * self.every
         ):
             self.count += 1

@@ -31,10 +31,9 @@ import numpy as np
 
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
 from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
-from cogblocks.sync.coupling import Coupling, checked_graph
-from cogblocks.sync.identification import KuramotoRLS, usable_phases
+from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import BlenderParams
-from cogblocks.sync.motion import OMEGA_L3_LIMIT, _MotionPorts
+from cogblocks.sync.motion import OMEGA_L3_LIMIT, _IdentifyingMotion
 
 __all__ = ["MEAN", "NONE", "PACE", "PacingMotion", "euler_step", "margin_choice", "predicted_order"]
 
@@ -150,7 +149,7 @@ def margin_choice(kinds: np.ndarray, scores: np.ndarray, current: int, margin: f
     return best
 
 
-class PacingMotion(_MotionPorts):
+class PacingMotion(_IdentifyingMotion):
     """Chooses, every period, the reference the identified group model predicts best over a long horizon.
 
     See the module docstring for the candidates and the choice. Decisions are taken in the update phase of
@@ -226,12 +225,7 @@ class PacingMotion(_MotionPorts):
         min_excitation: float = 1.0,
         period: float | None = None,
     ) -> None:
-        super().__init__(n, assisted, period)
-        coupling = Coupling(checked_graph(self, adjacency, n), n, sparse=False)
-        self.adjacency = np.asarray(coupling.matrix, dtype=float)
-        if blender is not None and not isinstance(blender, BlenderParams):
-            raise ValueError(f"{type(self).__name__}: blender must be a BlenderParams, got {type(blender).__name__}")
-        self.blender = blender or BlenderParams()
+        super().__init__(n, assisted, period, adjacency, blender)
         self.decide_every = positive_int(self, "decide_every", decide_every)
         self.horizon = finite_number(self, "horizon", horizon, low=0.0, low_open=True)
         self.step = finite_number(self, "step", step, low=0.0, low_open=True)
@@ -245,15 +239,11 @@ class PacingMotion(_MotionPorts):
         self.start = _MODES[one_of(self, "start", start, tuple(_MODES))]
         self.min_ticks = positive_int(self, "min_ticks", min_ticks, minimum=1)
         self.min_excitation = finite_number(self, "min_excitation", min_excitation, low=0.0)
-        self.rls = KuramotoRLS(self.adjacency)
         self.others = np.arange(n) != self.assisted
         self.add_state("mode", self.start)
         self.add_state("value", math.pi)  # the paced frequency, or the mean's gate
         self.add_state("theta_ref_now", 0.0)
         self.add_state("due", True)
-        self.add_state("count", 0)  # increments identified
-        self.add_state("info", self.rls.info)
-        self.add_state("rhs", self.rls.rhs)
         self.add_state("previous", np.full(2 * n, math.nan))  # θ̃ and own phases of the last tick (NaN: bad)
         self.decide_ms: list[float] = []
         self.choices: list[int] = []
@@ -281,10 +271,10 @@ class PacingMotion(_MotionPorts):
 
     def model(self) -> tuple[np.ndarray, float] | None:
         """The identified ``(ω, K)``, or ``None`` while it is not trusted."""
-        self.rls.info, self.rls.rhs = self.info, self.rhs
-        if self.count < self.min_ticks or self.rls.gain_excitation() < self.min_excitation:
+        rls = self.identifier()
+        if self.count < self.min_ticks or rls.gain_excitation() < self.min_excitation:
             return None
-        omega, gain = self.rls.estimate()
+        omega, gain = rls.estimate()
         return (omega, gain) if np.isfinite(omega).all() and math.isfinite(gain) else None
 
     def update(self, k: int) -> None:
@@ -311,8 +301,7 @@ class PacingMotion(_MotionPorts):
         l0 = theta[self.assisted]
         seen = theta.copy()
         seen[self.assisted] = l0 + min(max(float(wrap_pi(ref - l0)), -lam), lam)
-        self.rls.info, self.rls.rhs = self.info, self.rhs
-        if usable_phases(self.previous) and self.rls.observe(
+        if usable_phases(self.previous) and self.identifier().observe(
             self.previous[: self.n], self.previous[self.n :], theta, dt
         ):
             self.count += 1

@@ -25,10 +25,9 @@ import numpy as np
 from cogblocks.blocks.angles import wrap_angle
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sim.params import finite_number, positive_int
-from cogblocks.sync.coupling import Coupling, checked_graph
-from cogblocks.sync.identification import KuramotoRLS, usable_phases
+from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import DT, BlenderParams
-from cogblocks.sync.motion import _MotionPorts
+from cogblocks.sync.motion import _IdentifyingMotion
 from cogblocks.sync.whole_run import plan_alterations, tick_model
 
 __all__ = ["SWEEPS", "PlannedMotion", "checked_sweeps"]
@@ -43,7 +42,7 @@ SWEEPS: tuple[tuple[float, float, float], ...] = (
 )
 
 
-class PlannedMotion(_MotionPorts):
+class PlannedMotion(_IdentifyingMotion):
     """Identifies the group while doing nothing, then plans every remaining tick of the trial and plays the plan.
 
     See the module docstring.
@@ -98,20 +97,12 @@ class PlannedMotion(_MotionPorts):
         max_iter: int = 20,
         period: float | None = None,
     ) -> None:
-        super().__init__(n, assisted, period)
-        self.adjacency = np.asarray(Coupling(checked_graph(self, adjacency, n), n, sparse=False).matrix, dtype=float)
-        if blender is not None and not isinstance(blender, BlenderParams):
-            raise ValueError(f"PlannedMotion: blender must be a BlenderParams, got {type(blender).__name__}")
-        self.blender = blender or BlenderParams()
+        super().__init__(n, assisted, period, adjacency, blender)
         self.end = finite_number(self, "end", end, low=0.0, low_open=True)
         self.sweeps = checked_sweeps(self, sweeps)
         self.min_ticks = positive_int(self, "min_ticks", min_ticks)
         self.min_excitation = finite_number(self, "min_excitation", min_excitation, low=0.0)
         self.max_iter = positive_int(self, "max_iter", max_iter)
-        self.rls = KuramotoRLS(self.adjacency)
-        self.add_state("count", 0)  # increments identified
-        self.add_state("info", self.rls.info)
-        self.add_state("rhs", self.rls.rhs)
         self.add_state("previous", np.full(n, math.nan))  # the last tick's phases (NaN: bad)
         self.add_state("plan", None)  # the planned alteration (rad) of ticks plan_start, plan_start + 1, …
         self.add_state("plan_start", -1)
@@ -139,13 +130,13 @@ class PlannedMotion(_MotionPorts):
             self.previous[...] = math.nan
             return
         dt = self.dt * self.every
-        self.rls.info, self.rls.rhs = self.info, self.rhs
+        rls = self.identifier()
         # nothing is altered before the plan: the phases the group sees are its own
-        if usable_phases(self.previous) and self.rls.observe(self.previous, self.previous, theta, dt):
+        if usable_phases(self.previous) and rls.observe(self.previous, self.previous, theta, dt):
             self.count += 1
         self.previous[...] = theta
-        if self.count >= self.min_ticks and self.rls.gain_excitation() >= self.min_excitation:
-            omega, gain = self.rls.estimate()
+        if self.count >= self.min_ticks and rls.gain_excitation() >= self.min_excitation:
+            omega, gain = rls.estimate()
             if np.isfinite(omega).all() and math.isfinite(gain):
                 lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
                 self._make_plan(k, theta, lam, omega, gain, dt)

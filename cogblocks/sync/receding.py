@@ -35,10 +35,9 @@ import numpy as np
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sim.params import finite_number, one_of, positive_int
-from cogblocks.sync.coupling import Coupling, checked_graph
-from cogblocks.sync.identification import KuramotoRLS, usable_phases
+from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import DT, BlenderParams
-from cogblocks.sync.motion import _MotionPorts
+from cogblocks.sync.motion import _IdentifyingMotion
 from cogblocks.sync.planned import checked_sweeps
 from cogblocks.sync.whole_run import (
     alteration_rollout,
@@ -63,7 +62,7 @@ MARGIN = 1e-4
 RECEDING_SWEEPS: tuple[tuple[float, float, float], ...] = ((4.0, 4.0, 0.25),)
 
 
-class RecedingPlanMotion(_MotionPorts):
+class RecedingPlanMotion(_IdentifyingMotion):
     """Identifies the group, then re-plans the next ``horizon`` seconds every ``decide_every`` seconds.
 
     See the module docstring.
@@ -139,11 +138,7 @@ class RecedingPlanMotion(_MotionPorts):
         max_iter: int = 20,
         period: float | None = None,
     ) -> None:
-        super().__init__(n, assisted, period)
-        self.adjacency = np.asarray(Coupling(checked_graph(self, adjacency, n), n, sparse=False).matrix, dtype=float)
-        if blender is not None and not isinstance(blender, BlenderParams):
-            raise ValueError(f"RecedingPlanMotion: blender must be a BlenderParams, got {type(blender).__name__}")
-        self.blender = blender or BlenderParams()
+        super().__init__(n, assisted, period, adjacency, blender)
         self.end = None if end is None else finite_number(self, "end", end, low=0.0, low_open=True)
         self.decide_ticks = _ticks(self, "decide_every", decide_every)
         self.horizon_ticks = _ticks(self, "horizon", horizon)
@@ -158,11 +153,7 @@ class RecedingPlanMotion(_MotionPorts):
         self.min_ticks = positive_int(self, "min_ticks", min_ticks)
         self.min_excitation = finite_number(self, "min_excitation", min_excitation, low=0.0)
         self.max_iter = positive_int(self, "max_iter", max_iter)
-        self.rls = KuramotoRLS(self.adjacency)
         self.others = np.arange(n) != self.assisted
-        self.add_state("count", 0)  # increments identified
-        self.add_state("info", self.rls.info)
-        self.add_state("rhs", self.rls.rhs)
         self.add_state("previous", np.full(2 * n, math.nan))  # the phases seen and observed last tick (NaN: bad)
         self.add_state("plan_s", None)  # the plan in force: alteration fractions of ticks plan_start, …
         self.add_state("plan_a", None)  # … and its alterations (rad)
@@ -216,9 +207,9 @@ class RecedingPlanMotion(_MotionPorts):
             return
         lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
         dt = self.dt * self.every
-        self.rls.info, self.rls.rhs = self.info, self.rhs
+        rls = self.identifier()
         n = self.n
-        if usable_phases(self.previous) and self.rls.observe(self.previous[:n], self.previous[n:], theta, dt):
+        if usable_phases(self.previous) and rls.observe(self.previous[:n], self.previous[n:], theta, dt):
             self.count += 1
         l0 = float(theta[self.assisted])
         seen = theta.copy()
@@ -226,9 +217,9 @@ class RecedingPlanMotion(_MotionPorts):
         self.previous[:n], self.previous[n:] = seen, theta
         if k < self.next_decision or self._future is not None or self.pending is not None:
             return
-        if self.count < self.min_ticks or self.rls.gain_excitation() < self.min_excitation:
+        if self.count < self.min_ticks or rls.gain_excitation() < self.min_excitation:
             return
-        omega, gain = self.rls.estimate()
+        omega, gain = rls.estimate()
         if not (np.isfinite(omega).all() and math.isfinite(gain)):
             return
         if abs(dt - DT) > 1e-12:

@@ -9,13 +9,14 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def _cli(*args):
     return subprocess.Popen(
-        [sys.executable, "-m", "cogblocks.cli", "live", *args],
+        [sys.executable, "-X", "faulthandler", "-m", "cogblocks.cli", "live", *args],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -89,7 +90,12 @@ def test_ctrl_c_stops_the_run_and_saves_the_trace(lsl, streamer, stream_name, tm
     reader.pull_sample(timeout=5.0)  # it runs
     time.sleep(0.5)
     cli.send_signal(signal.SIGINT)
-    out, err = cli.communicate(timeout=30)
+    try:
+        out, err = cli.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        cli.send_signal(signal.SIGABRT)  # -X faulthandler: the process prints every thread's stack, then dies
+        _, err = cli.communicate(timeout=10)
+        pytest.fail(f"cogblocks live did not stop within 30 s of Ctrl-C; where its threads were:\n{err[-6000:]}")
     assert cli.returncode == 0, err
     assert "(stopped by Ctrl-C)" in out and f"saved the trace and the raw samples to {saved}" in out
     with np.load(saved) as run:

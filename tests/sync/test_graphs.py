@@ -160,3 +160,21 @@ def test_model_uses_the_sparse_product_for_large_groups():
     ):
         assert angle_gap(got, want).max() < 1e-12
     np.testing.assert_array_equal(model.neighbours, ring_adjacency(200)[7])
+
+
+@pytest.mark.parametrize("graph", ["ring", "all", ("random", 0.5, 4), "weighted"])
+def test_every_identifying_motion_computer_models_the_graph_it_is_given(graph):
+    from cogblocks.sync import MPCMotion, PacingMotion, PlannedMotion, RecedingPlanMotion
+
+    spec = weighted_directed(5, 0.6, 1) if graph == "weighted" else graph
+    expected = adjacency_matrix(spec, 5)
+    expected = expected.toarray() if sp.issparse(expected) else expected
+    blocks = [
+        MPCMotion(5, 1, adjacency=spec),
+        PacingMotion(5, 1, adjacency=spec),
+        PlannedMotion(5, 1, end=5.0, adjacency=spec),
+        RecedingPlanMotion(5, 1, end=5.0, adjacency=spec),
+    ]
+    for block in blocks:
+        np.testing.assert_array_equal(block.adjacency, expected)
+        np.testing.assert_array_equal(block.identifier().adjacency, expected)
