@@ -45,6 +45,7 @@ from cogblocks.sync.whole_run import (
     refine_plan,
     rollout_function,
     rule_plan,
+    rule_rollouts,
     sweep_solvers,
     sweep_ticks,
 )
@@ -82,10 +83,18 @@ class RecedingPlanMotion(_IdentifyingMotion):
         The blender the plan goes through (the deliverable's by default).
     decide_every : float
         The decision period (s, a multiple of the 10 ms tick): a decision takes effect one period after it starts.
-    horizon : float
-        How far a plan reaches (s): the predicted mean r over it is what a decision maximises.
-    compare : float
-        How far ahead (s) the first decision compares the reference rules it starts from.
+    horizon : float or None
+        How far a plan reaches (s): the predicted mean r over it is what a decision maximises. ``None``: to the
+        trial's end (``end`` needed).
+    compare : float or None
+        How far ahead (s) the first decision compares the reference rules it starts from, and a later one the
+        rules it may extend the plan in force with. ``None``: over the whole plan.
+    extend : {"rule", "nothing"}
+        What a later decision's warm start holds past the end of the plan in force (its last period): ``"rule"``,
+        the best over ``compare`` of doing nothing, following the others' circular mean and going on at the
+        frequency the planned reference had over its last period, in closed loop from the state predicted there;
+        ``"nothing"``, no alteration. Every plan is judged on the whole horizon, so this
+        is the future a decision expects beyond what it has planned.
     sweeps : sequence of (window, tail, knot)
         The window sweeps of a decision (s, multiples of the tick; ``knot`` divides ``window``), in order.
     worker : {"inline", "thread"}
@@ -128,8 +137,9 @@ class RecedingPlanMotion(_IdentifyingMotion):
         adjacency: Any = "ring",
         blender: BlenderParams | None = None,
         decide_every: float = 1.0,
-        horizon: float = 30.0,
-        compare: float = 10.0,
+        horizon: float | None = 30.0,
+        compare: float | None = 10.0,
+        extend: str = "rule",
         sweeps: Sequence[tuple[float, float, float]] = RECEDING_SWEEPS,
         worker: str = "inline",
         margin: float = MARGIN,
@@ -141,12 +151,15 @@ class RecedingPlanMotion(_IdentifyingMotion):
         super().__init__(n, assisted, period, adjacency, blender)
         self.end = None if end is None else finite_number(self, "end", end, low=0.0, low_open=True)
         self.decide_ticks = _ticks(self, "decide_every", decide_every)
-        self.horizon_ticks = _ticks(self, "horizon", horizon)
-        if self.horizon_ticks < self.decide_ticks:
+        if horizon is None and self.end is None:
+            raise ValueError("RecedingPlanMotion: horizon=None plans to the trial's end, which needs end")
+        self.horizon_ticks = None if horizon is None else _ticks(self, "horizon", horizon)
+        if self.horizon_ticks is not None and self.horizon_ticks < self.decide_ticks:
             raise ValueError(
                 f"RecedingPlanMotion: horizon ({horizon} s) must be at least decide_every ({decide_every} s)"
             )
-        self.compare_ticks = _ticks(self, "compare", compare)
+        self.compare_ticks = None if compare is None else _ticks(self, "compare", compare)
+        self.extend = one_of(self, "extend", extend, ("rule", "nothing"))
         self.sweeps = checked_sweeps(self, sweeps)
         self.worker = one_of(self, "worker", worker, ("inline", "thread"))
         self.margin = finite_number(self, "margin", margin, low=0.0)
@@ -226,11 +239,11 @@ class RecedingPlanMotion(_IdentifyingMotion):
             raise RuntimeError(f"RecedingPlanMotion plans on the {DT} s tick of cogblocks.sync.model.DT, not {dt} s")
         start = k + self.decide_ticks
         self.next_decision = start
-        stop = (
-            start + self.horizon_ticks
-            if self.end is None
-            else min(round(self.end / DT) + 1, start + self.horizon_ticks)
-        )
+        if self.end is None:
+            stop = start + self.horizon_ticks
+        else:
+            stop = round(self.end / DT) + 1
+            stop = stop if self.horizon_ticks is None else min(stop, start + self.horizon_ticks)
         if stop <= start:
             return
         task = (omega.copy(), float(gain), np.r_[theta, lam], k, start, stop, self._committed())
@@ -300,9 +313,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
         if committed is None:
             warm = rule_plan(model, self.adjacency, self.blender, x, n_ticks, self.compare_ticks)
         else:
-            warm = np.zeros(n_ticks)
-            old = committed[1][start - committed[2] :][:n_ticks]
-            warm[: len(old)] = old
+            warm = self._extended(model, tick, x, committed[1][start - committed[2] :][:n_ticks], n_ticks)
         s, states, r = refine_plan(
             model,
             self.adjacency,
@@ -320,6 +331,35 @@ class RecedingPlanMotion(_IdentifyingMotion):
             states, r = alteration_rollout(roll, x, s)
         self.decide_ms.append((time.thread_time() - clock) * 1e3)
         return s, states[:, self.n] * s, start, r
+
+    def _extended(
+        self, model: SyncGroup, tick: ca.Function, x: np.ndarray, old: np.ndarray, n_ticks: int
+    ) -> np.ndarray:
+        """The plan in force's fractions ``old`` from the new plan's first tick, continued to ``n_ticks`` as
+        ``extend`` says."""
+        if len(old) >= n_ticks or self.extend == "nothing":
+            return np.r_[old, np.zeros(n_ticks - len(old))]
+        end, n, pace = x, self.n, 0.0
+        if len(old):
+            states, _ = alteration_rollout(rollout_function(tick, self._solvers), x, old)
+            end = np.asarray(tick(states[-1], old[-1])[0], dtype=float).ravel()
+            # the reference's frequency over the plan's last period (the tick model's phases are not wrapped)
+            reference = states[:, self.assisted] + states[:, n] * old
+            last = reference[-min(len(reference), self.decide_ticks) :]
+            pace = (last[-1] - last[0]) / (DT * (len(last) - 1)) if len(last) > 1 else 0.0
+            start_phase = reference[-1] + DT * pace
+        else:
+            start_phase = end[self.assisted]
+        # doing nothing, the others' mean, the reference going on at its frequency
+        rules = (np.array([0, 1, 2]), np.array([0.0, 0.0, start_phase]), np.array([0.0, 0.0, pace]))
+        rest = n_ticks - len(old)
+        compared = rest if self.compare_ticks is None else self.compare_ticks
+        sums, _ = rule_rollouts(model, self.adjacency, self.blender, end, rules, compared, record=False)
+        best = int(np.argmax(sums))
+        _, s = rule_rollouts(
+            model, self.adjacency, self.blender, end, tuple(v[best : best + 1] for v in rules), rest, True
+        )
+        return np.r_[old, s[:, 0]]
 
 
 def _ticks(block: RecedingPlanMotion, name: str, value: Any) -> int:

@@ -294,6 +294,7 @@ CASES = [
     case("RecedingPlanMotion", "decide_every", 0.0, "(0.0, inf)"),
     case("RecedingPlanMotion", "horizon", 0.005, "multiple of 0.01 s"),
     case("RecedingPlanMotion", "compare", -1.0, "(0.0, inf)"),
+    case("RecedingPlanMotion", "extend", "mean", "one of"),
     case("RecedingPlanMotion", "sweeps", [(4.0, 4.0)], "(window, tail, knot) triples", given="[(4.0, 4.0)]"),
     case("RecedingPlanMotion", "worker", "process", "one of"),
     case("RecedingPlanMotion", "margin", -1.0, "[0.0, inf)"),

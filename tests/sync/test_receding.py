@@ -189,3 +189,38 @@ def test_a_plan_that_does_not_beat_doing_nothing_by_the_margin_is_not_played():
     assert len(idle.plans) == 5 and all(np.all(a == 0.0) for _, a, _ in idle.plans)
     np.testing.assert_array_equal(_wrap(trace["l2"] - trace["l0"]), 0.0)
     np.testing.assert_allclose(trace["r"], without, rtol=0, atol=1e-12)
+
+
+def test_past_the_plan_in_force_a_decision_expects_the_best_rule_not_nothing():
+    # plans as long as the period and no sweeps: a later decision's warm start is all extension, played as it is
+    probes = {"l0": "l2.theta_l0", "l2": "l2.theta_l2", "theta": "group.theta", "lam": "l2.lam"}
+    runs = {}
+    for extend in ("rule", "nothing"):
+        block = _block(horizon=1.0, sweeps=(), extend=extend)
+        runs[extend] = (block, Simulator(pop_sync(GROUP, motion=block), probes=probes).run(n_steps=N_TICKS))
+    block, trace = runs["rule"]
+    others = np.delete(trace["theta"], GROUP.assisted, axis=1)
+    mean = np.angle(np.exp(1j * others).sum(axis=1))
+    follow_mean = np.clip(_wrap(mean - trace["l0"]), -trace["lam"], trace["lam"])  # the mean rule, on the group
+    altered = _wrap(trace["l2"] - trace["l0"])
+    assert [start for start, _, _ in block.plans] == [200, 300, 400, 500, 600]
+    for start, a, _ in block.plans[1:]:  # on this unlocked group the mean is the best rule
+        assert np.abs(a).max() > 0.3
+        np.testing.assert_allclose(altered[start : start + len(a)], follow_mean[start : start + len(a)], atol=1e-3)
+    idle, idle_trace = runs["nothing"]
+    assert all(np.all(a == 0.0) for _, a, _ in idle.plans[1:])  # nothing expected, nothing found better
+    assert trace["r"].mean() > idle_trace["r"].mean() + 0.03
+
+
+def test_with_no_horizon_every_plan_reaches_the_trials_end():
+    block = _block(horizon=None, compare=None)
+    _run(block)
+    assert [(start, len(a)) for start, a, _ in block.plans] == [
+        (200, 401),
+        (300, 301),
+        (400, 201),
+        (500, 101),
+        (600, 1),
+    ]
+    with pytest.raises(ValueError, match="horizon=None plans to the trial's end, which needs end"):
+        RecedingPlanMotion(3, 0, end=None, horizon=None)
