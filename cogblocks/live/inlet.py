@@ -51,7 +51,7 @@ class LSLInlet(Block):
     * ``mode="latest"``: the newest sample;
     * ``mode="interpolate"``: the stream at ``lag`` seconds before the tick's nominal time, linearly
       interpolated between the two samples around that time (along the shorter arc for a wrapped
-      angle). The nominal time of tick ``k`` is the first tick's time plus ``k`` base steps, so the
+      angle). The nominal time of tick ``k`` is the first tick's start plus ``k`` base steps, so the
       values are the stream resampled on a regular grid however late a tick runs (a tick more than
       0.25 s off its nominal time starts a new grid). A lag of one sample period of the stream plus
       its transport delay keeps the interpolation inside received data; past the newest sample the
@@ -280,6 +280,7 @@ class LSLInlet(Block):
     def output(self, k: int) -> None:
         if self.inlet is None:
             raise self._fail("the stream is closed")
+        started = pylsl.local_clock()  # the grid's clock: a pull held up on a busy machine does not shift it
         arrived = self._pull()
         now = pylsl.local_clock()
         self.tick_time = now
@@ -288,7 +289,7 @@ class LSLInlet(Block):
             at = self._ts[-1] if self._count else math.nan
             value = self._x[-1] if self._count and now - at <= self.hold else np.nan
         else:
-            at = self._nominal(k, now) - self.lag
+            at = self._nominal(k, started) - self.lag
             value = self._interpolate(at) if self._count else np.nan
         self.sample_time = at
         self.age_ms.value[...] = 1e3 * (now - at) if self._count else np.inf

@@ -152,6 +152,28 @@ def test_irregular_samples_become_one_value_per_tick(lsl, stream_name):
     assert not bool(blocks["latest"].fresh.value) and np.isnan(blocks["latest"].y.value)
 
 
+def test_a_slow_first_pull_does_not_shift_the_interpolation_grid(lsl, stream_name, monkeypatch):
+    from cogblocks.live import LSLInlet
+
+    outlet = _outlet(lsl, stream_name)
+    compiled, blocks = _inlets(stream_name, a={"unit": "mm", "mode": "interpolate", "lag": 0.02})
+    inlet = blocks["a"]
+    pull = LSLInlet._pull
+
+    def slow_first(self):
+        if self._ticks == 0:
+            time.sleep(0.02)  # a busy machine holds up the first pull
+        return pull(self)
+
+    monkeypatch.setattr(LSLInlet, "_pull", slow_first)
+    before = lsl.local_clock()
+    compiled.step()
+    # the grid starts when the tick did, not when its pull came back: the value is lag before the tick's start
+    assert 0.0 <= inlet.sample_time + 0.02 - before < 0.01
+    assert inlet.age_ms.value >= 40.0
+    del outlet
+
+
 def test_a_stream_that_stops_gives_nan_and_an_ageing_sample(lsl, stream_name):
     outlet = _outlet(lsl, stream_name, channels=2)
     # hold long enough that a loaded machine still steps within it, short enough to wait out
