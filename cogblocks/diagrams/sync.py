@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from cogblocks.blocks import Demux, Mux, Probe, Substitute
+from cogblocks.blocks.angles import wrap_pi
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.phase import PhaseEstimator
 from cogblocks.sim import Block, Diagram, Simulator, Trace
@@ -87,7 +88,10 @@ def _plan_motion(group: SyncGroup) -> Block:
 def _replan_motion(group: SyncGroup) -> Block:
     from cogblocks.sync import RecedingPlanMotion
 
-    return RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+    # a simulated trial has an end, and every plan reaches it (live_motion plans 30 s ahead, with no end)
+    return RecedingPlanMotion(
+        group.n, group.assisted, adjacency=group.graph, end=group.duration, horizon=None, compare=None
+    )
 
 
 def _guard_motion(group: SyncGroup) -> Block:
@@ -101,9 +105,9 @@ def _guard_motion(group: SyncGroup) -> Block:
 #: (``python -m cogblocks.training.sync_dqn --randomised --seed 0``), ``dqn`` the same behind a shield (followed only
 #: while a prediction on the group identified online says it does not lower r); ``lookahead`` plans 25 ticks ahead on
 #: the true model; ``mean`` follows the others' circular mean; ``mpc``, ``pace``, ``guard`` and ``replan`` plan on a
-#: model they identify online (``replan`` re-plans 30 s ahead every second with the bound's search); ``plan`` plans
-#: the whole trial at once with it (offline: seconds of CPU in one tick). Add an entry to make a policy available to
-#: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
+#: model they identify online (``replan`` re-plans to the trial's end every second with the bound's search); ``plan``
+#: plans the whole trial at once with it (offline: seconds of CPU in one tick). Add an entry to make a policy available
+#: to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
     "dqn_raw": _dqn_raw_motion,
@@ -228,11 +232,7 @@ def pop_sync(
 
 
 def _deviation(trace: Any) -> np.ndarray:
-    return np.abs(_wrapped_difference(trace["theta_l2"], trace["theta_l0"]))
-
-
-def _wrapped_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.angle(np.exp(1j * (a - b)))
+    return np.abs(wrap_pi(trace["theta_l2"] - trace["theta_l0"]))
 
 
 def simulate(
@@ -376,7 +376,7 @@ def plot_sync(
     ax1.legend(loc="lower right")
     ax1.set_title(f"{params.name}: Figures 9 and 10 analogues ({domain} domain)")
     for name, text, style in (("theta_ref", "θ_ref − θ_L0", "g-"), ("theta_l2", "θ_L2 − θ_L0", "b-")):
-        difference = _wrapped_difference(with_l2[name], with_l2["theta_l0"])
+        difference = wrap_pi(with_l2[name] - with_l2["theta_l0"])
         difference[1:][np.abs(np.diff(difference)) > np.pi] = np.nan  # no vertical line where it wraps
         ax2.plot(t, difference, style, lw=0.8, label=text)
     ax2.set_ylim(-np.pi, np.pi)
