@@ -171,7 +171,11 @@ class RecedingPlanMotion(_IdentifyingMotion):
         self.add_state("plan_s", None)  # the plan in force: alteration fractions of ticks plan_start, …
         self.add_state("plan_a", None)  # … and its alterations (rad)
         self.add_state("plan_start", -1)
-        self.add_state("pending", None)  # a decision's (s, a, start, r) until its plan starts
+        # a decision's plan until it starts: fractions, alterations, predicted r (arrays; a snapshot file holds them)
+        self.add_state("pending_s", None)
+        self.add_state("pending_a", None)
+        self.add_state("pending_r", None)
+        self.add_state("pending_start", -1)  # -1: no decision pending
         self.add_state("next_decision", -1)  # the first tick a decision may start (-1: as soon as identified)
         self.add_state("theta_ref_now", 0.0)
         self._model: ca.Function | None = None  # identified_tick_model, and the solvers built on it
@@ -228,7 +232,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
         seen = theta.copy()
         seen[self.assisted] = wrap_angle(l0 + min(max(float(wrap_pi(self.theta_ref_now - l0)), -lam), lam))
         self.previous[:n], self.previous[n:] = seen, theta
-        if k < self.next_decision or self._future is not None or self.pending is not None:
+        if k < self.next_decision or self._future is not None or self.pending_start >= 0:
             return
         if self.count < self.min_ticks or rls.gain_excitation() < self.min_excitation:
             return
@@ -248,7 +252,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
             return
         task = (omega.copy(), float(gain), np.r_[theta, lam], k, start, stop, self._committed())
         if self.worker == "inline":
-            self.pending = self._decide(*task)
+            self._hold(self._decide(*task))
             return
         if self._executor is None:
             self._executor = ThreadPoolExecutor(1, thread_name_prefix="cogblocks-replan")
@@ -267,17 +271,20 @@ class RecedingPlanMotion(_IdentifyingMotion):
         """
         if self._future is not None:
             if self._future.done():
-                self.pending, self._future = self._future.result(), None
+                self._hold(self._future.result())
+                self._future = None
             elif k + 1 == self.next_decision:
                 self.late += 1
-        if self.pending is None:
-            return
-        s, a, start, r = self.pending
-        if k + 1 >= start:
+        start = self.pending_start
+        if 0 <= start <= k + 1:
             if k + 1 == start:
-                self.plan_s, self.plan_a, self.plan_start = s, a, start
-                self.plans.append((start, a, r))
-            self.pending = None
+                self.plan_s, self.plan_a, self.plan_start = self.pending_s, self.pending_a, start
+                self.plans.append((start, self.pending_a, self.pending_r))
+            self._hold((None, None, -1, None))
+
+    def _hold(self, decision: tuple[np.ndarray | None, np.ndarray | None, int, np.ndarray | None]) -> None:
+        """Keep a decision's ``(fractions, alterations, start, predicted r)`` until its plan starts."""
+        self.pending_s, self.pending_a, self.pending_start, self.pending_r = decision
 
     def _tick(self) -> ca.Function:
         """The group's tick model with ω and K in the state, built once: decisions reuse its solvers."""

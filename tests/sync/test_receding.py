@@ -84,16 +84,19 @@ def test_motions_replan_is_told_the_group_and_the_trial():
     assert block.end == GROUP.duration and block.assisted == GROUP.assisted
 
 
-def test_plans_continue_bit_for_bit_from_a_snapshot_taken_between_a_decision_and_its_plan():
+def test_plans_continue_bit_for_bit_from_a_snapshot_taken_between_a_decision_and_its_plan(tmp_path):
     sim = Simulator(pop_sync(GROUP, motion=_block()), probes={"ref": "l2.theta_ref"})
     sim.run(n_steps=250)  # the decision of tick 200 is pending until tick 300
     snapshot = sim.state_dict()
+    sim.save_state(tmp_path / "snap.npz")  # and to a file, without pickle
     first = sim.run(n_steps=200)
-    other = Simulator(pop_sync(GROUP, motion=_block()), probes={"ref": "l2.theta_ref"})
-    other.load_state_dict(snapshot)
-    second = other.run(n_steps=200)
-    np.testing.assert_array_equal(first["ref"], second["ref"])
-    np.testing.assert_array_equal(first["r"], second["r"])
+    for load in (lambda other: other.load_state_dict(snapshot), lambda other: other.load_state(tmp_path / "snap.npz")):
+        other = Simulator(pop_sync(GROUP, motion=_block()), probes={"ref": "l2.theta_ref"})
+        load(other)
+        assert other.compiled.blocks["l2.motion"].pending_start == 300
+        second = other.run(n_steps=200)
+        np.testing.assert_array_equal(first["ref"], second["ref"])
+        np.testing.assert_array_equal(first["r"], second["r"])
 
 
 def test_on_a_thread_in_real_time_the_plans_are_those_made_inline():
@@ -133,7 +136,8 @@ def test_a_late_decision_is_counted_and_dropped_while_the_plan_in_force_goes_on(
     release.set()
     block._future.result(timeout=30.0)
     sim.run(n_steps=1)
-    assert block.pending is None and block.plans == []  # its plan's start, tick 200, has passed: dropped
+    # its plan's start, tick 200, has passed: dropped
+    assert block.pending_start == -1 and block.pending_a is None and block.plans == []
     assert block._future is not None and block.next_decision == 450  # decided again at tick 350, the worker free
     block._future.result(timeout=30.0)
     second = sim.run(n_steps=N_TICKS - 351)
