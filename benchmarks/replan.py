@@ -76,7 +76,9 @@ def run(quick: bool = False) -> Iterator[dict]:
         } | context
         yield {"name": f"replan.{label}.r", "value": r, "unit": "r", "reference": r0, "ratio": r / r0} | context
         seconds = min(live_s, group.duration)
-        threaded = RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=seconds, worker="thread")
+        threaded = RecedingPlanMotion(  # MOTIONS["replan"] on a thread: plans to the (cut) trial's end
+            group.n, group.assisted, adjacency=group.graph, end=seconds, horizon=None, compare=None, worker="thread"
+        )
         started = time.perf_counter()
         _, tick_p99 = _live(group, threaded, seconds)
         _, mean_p99 = _live(group, MOTIONS["mean"](group), seconds)

@@ -121,7 +121,7 @@ MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
 }
 
 #: The motion computer :func:`pop_sync` uses when none is given (docs/pop-sync.md, "Default", says why).
-DEFAULT_MOTION = "guard"
+DEFAULT_MOTION = "replan"
 
 #: What ``run_sync`` and ``cogblocks run sync --group N`` run without a policy list: the Table 3
 #: comparison as first published here (``mpc`` is slower and runs when asked for by name).

@@ -14,7 +14,7 @@ from cogblocks.diagrams.amplification import pop_amplification
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.experiments.files import diagram_from_dict, diagram_to_dict, load_diagram, save_diagram
 from cogblocks.sim import Block, Diagram, DiagramError, Signal, Simulator
-from cogblocks.sync import ArmPositions, GuardedPacingMotion, KuramotoGroup, MeanPhaseMotion, MotionComputer
+from cogblocks.sync import ArmPositions, KuramotoGroup, MeanPhaseMotion, MotionComputer, RecedingPlanMotion
 
 torch.set_num_threads(1)
 
@@ -32,7 +32,7 @@ def same_run(a, b, n_steps, probes=None):
 def test_pop_sync_reloads_bit_identical(tmp_path, suffix):
     path = save_diagram(pop_sync(3), tmp_path / f"sync{suffix}")
     loaded = load_diagram(path)
-    assert type(loaded["l2"]).__name__ == "L2Sync" and isinstance(loaded["l2.motion"], GuardedPacingMotion)
+    assert type(loaded["l2"]).__name__ == "L2Sync" and isinstance(loaded["l2.motion"], RecedingPlanMotion)
     trace = same_run(pop_sync(3), loaded, 1500, probes=["group.theta", "l2.lam"])
     assert trace["r"].std() > 0  # something happens in the run compared
 
@@ -131,7 +131,7 @@ def test_errors_are_those_of_python_and_name_the_file(tmp_path):
 
     bad = json.loads(json.dumps(good))
     bad["root"]["diagram"]["blocks"]["l2"]["params"]["motion"]["block"]["params"]["colour"] = 1
-    kind, message = python_error(lambda: GuardedPacingMotion(5, 3, colour=1))
+    kind, message = python_error(lambda: RecedingPlanMotion(5, 3, end=1.0, colour=1))
     with pytest.raises(kind) as info:
         load_diagram(write(bad))
     assert str(info.value) == f"{path}: block 'l2': {message}"
