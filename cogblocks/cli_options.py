@@ -9,9 +9,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["COUNT", "DURATION", "PLOT_PATH", "POLICY", "SEED", "STEP"]
+from cogblocks.sim.timing import BASE_STEP
 
-_BASE_STEP = 0.01  # seconds; the ready diagrams run at 100 Hz
+__all__ = ["COUNT", "DURATION", "PLOT_PATH", "POLICY", "SEED", "STEP"]
 
 
 def _option(convert: Callable[[str], Any]) -> Callable[[str], Any]:
@@ -51,9 +51,9 @@ def _seconds(text: str) -> float:
 
 def _duration(text: str) -> float:
     value = _seconds(text)
-    steps = value / _BASE_STEP
+    steps = value / BASE_STEP
     if not math.isclose(steps, round(steps), rel_tol=0.0, abs_tol=1e-6):
-        raise ValueError(f"{text} s is not a whole number of base steps ({_BASE_STEP * 1000:g} ms)")
+        raise ValueError(f"{text} s is not a whole number of base steps ({BASE_STEP * 1000:g} ms)")
     return value
 
 

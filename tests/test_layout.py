@@ -43,7 +43,7 @@ ALLOWED = {
         "analysis",
         "cli_options",
     },
-    "cli_options": {"diagrams"},
+    "cli_options": {"sim", "diagrams"},
     "cli": {
         "cli_options",
         "sim",

@@ -13,6 +13,7 @@ import scipy.linalg
 import scipy.optimize
 
 from cogblocks.sim.params import finite_array, finite_number
+from cogblocks.sim.timing import BASE_STEP
 from cogblocks.sync import ring_adjacency
 
 __all__ = ["KuramotoLinearization", "kuramoto_jacobian", "kuramoto_linearization"]
@@ -233,7 +234,7 @@ def kuramoto_linearization(
     gain: float,
     adjacency: Any = "ring",
     *,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
 ) -> KuramotoLinearization:
     """Find a stable phase-locked state of a Kuramoto network and linearise around it.
 

@@ -22,7 +22,7 @@ import control
 import numpy as np
 
 from cogblocks.analysis.kuramoto import TWO_PI, _wrap_pi
-from cogblocks.sim import Block, CompiledDiagram, Diagram
+from cogblocks.sim import BASE_STEP, Block, CompiledDiagram, Diagram
 
 __all__ = ["linearize"]
 
@@ -98,7 +98,7 @@ def linearize(
     Parameters
     ----------
     system : Diagram or CompiledDiagram
-        The diagram (its last compiled plan, compiled at 10 ms if it has none) or plan.
+        The diagram (its last compiled plan, compiled at the base step if it has none) or plan.
     operating_point : mapping, optional
         A snapshot from ``state_dict()`` of the same plan; None for its current state.
         Its tick ``k`` is the tick linearised (it matters for time-varying sources
@@ -152,7 +152,10 @@ def linearize(
     """
     if not isinstance(system, (Diagram, CompiledDiagram)):
         raise TypeError(f"linearize needs a Diagram or CompiledDiagram, got {type(system).__name__}")
-    compiled = system if isinstance(system, CompiledDiagram) else system.compiled
+    if isinstance(system, CompiledDiagram):
+        compiled = system
+    else:  # a diagram's last plan; one that was never compiled is compiled at the base step, as documented
+        compiled = system.plan if system.plan is not None else system.compile(BASE_STEP)
     if not (isinstance(eps, (int, float)) and math.isfinite(eps) and eps > 0):
         raise ValueError(f"linearize: eps must be a positive number, got {eps!r}")
     slow = [path for path, block in compiled.blocks.items() if block.every > 1]

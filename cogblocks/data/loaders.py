@@ -21,6 +21,7 @@ import numpy as np
 import scipy.io
 
 from cogblocks.data.reach import ReachLibrary
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = [
     "CSV_COLUMNS",
@@ -106,7 +107,7 @@ def _library_from_movements(
 
 
 def load_velocity_data_mat(
-    path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_field: str = "Condition"
+    path: PathLike, max_len: int = 200, dt: float = BASE_STEP, *, label_field: str = "Condition"
 ) -> ReachLibrary:
     """Load the real data set's MATLAB file (struct ``VelocityData``, one field per participant).
 
@@ -338,7 +339,7 @@ def save_csv(library: ReachLibrary, path: PathLike) -> None:
     np.savetxt(path, table, fmt=["%d"] * 5 + ["%.17g"] * 6, delimiter=",", header=",".join(CSV_COLUMNS), comments="")
 
 
-def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_field: str = "fear") -> ReachLibrary:
+def load_csv(path: PathLike, max_len: int = 200, dt: float = BASE_STEP, *, label_field: str = "fear") -> ReachLibrary:
     """Load a long-format CSV file written by :func:`save_csv` (see there for the columns).
 
     Columns may come in any order and extra columns are ignored. Movements keep the order of

@@ -23,6 +23,7 @@ from scipy.integrate import cumulative_trapezoid
 from scipy.spatial.transform import Rotation
 
 from cogblocks.sim.params import finite_number, positive_int
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["Motion3D", "generate_motion3d", "reference_primitive", "reference_curve"]
 
@@ -122,7 +123,7 @@ class Motion3D:
 def generate_motion3d(
     seed: int | np.random.Generator = 0,
     duration: float = 30.0,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
     *,
     period: float = 2.0,
     period_spread: float = 0.15,

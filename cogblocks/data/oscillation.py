@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from cogblocks.sim.params import finite_number
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["Oscillation", "generate_oscillation"]
 
@@ -82,7 +83,7 @@ def _ou(rng: np.random.Generator, n: int, dt: float, tau: float, std: float) -> 
 def generate_oscillation(
     duration: float = 60.0,
     *,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
     seed: int | np.random.Generator | None = None,
     freq_range: tuple[float, float] = (0.4, 1.2),
     freq_drift: float = 0.15,

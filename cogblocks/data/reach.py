@@ -24,6 +24,8 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.special import beta as beta_function
 from scipy.special import betainc
 
+from cogblocks.sim.timing import BASE_STEP
+
 __all__ = ["ReachLibrary", "generate_reach_library"]
 
 
@@ -60,7 +62,7 @@ class ReachLibrary:
     fear: np.ndarray
     subject: np.ndarray
     target: np.ndarray
-    dt: float = 0.01
+    dt: float = BASE_STEP
 
     def __post_init__(self) -> None:
         self.velocity = np.asarray(self.velocity, dtype=np.float64)
@@ -218,7 +220,7 @@ def generate_reach_library(
     n_fear: int = 197,
     n_no_fear: int = 261,
     max_len: int = 200,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
 ) -> ReachLibrary:
     """Generate a synthetic reach-to-grasp library with fear and no-fear movements.
 

@@ -16,6 +16,7 @@ from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.phase import PhaseEstimator
 from cogblocks.sim import Block, Diagram, Simulator, Trace
 from cogblocks.sim.params import finite_number, one_of
+from cogblocks.sim.timing import BASE_STEP
 from cogblocks.sync import ArmPositions, Blender, KuramotoGroup, MeanPhaseMotion, MotionComputer, OrderParameter
 from cogblocks.sync.l2 import L2Sync
 
@@ -290,7 +291,7 @@ def sync_table(
     """
     params, motions = _checked(group, motions, duration)
     number = group if isinstance(group, int) else params.name
-    n_steps = round(params.duration / 0.01) + 1
+    n_steps = round(params.duration / BASE_STEP) + 1
     without = simulate(pop_sync(params, l2=False), n_steps, label=f"group {number}, without L2", progress=progress)
     r_without = float(without["r"].mean())
     yield {"group": number, "domain": domain, "r_without": r_without}
@@ -362,7 +363,7 @@ def plot_sync(
 
     params, _ = _checked(group, [motion], duration)
     label = motion if isinstance(motion, str) else type(motion).__name__
-    n_steps = round(params.duration / 0.01) + 1
+    n_steps = round(params.duration / BASE_STEP) + 1
     without = simulate(pop_sync(params, l2=False), n_steps, label="plot, without L2")
     probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0", "theta_ref": "l2.theta_ref"}
     diagram = pop_sync(params, l2=True, motion=motion, domain=domain, seed=seed)

@@ -81,15 +81,15 @@ class _Writer:
 
     def diagram(self, diagram: Diagram, where: str) -> dict[str, Any]:
         prefix = f"{where}." if where else ""
-        blocks = {name: self.block(child, f"{prefix}{name}") for name, child in diagram._children.items()}
+        blocks = {name: self.block(child, f"{prefix}{name}") for name, child in diagram.blocks.items()}
         return {
             "blocks": blocks,
-            "wires": [[f"{s}.{sp}", f"{d}.{dp}"] for s, sp, d, dp in diagram._wires],
+            "wires": [[str(source), str(target)] for source, target in diagram.wires],
             "inputs": {
-                name: {"targets": [f"{c}.{p}" for c, p in targets], "spec": _spec(diagram._inputs[name].spec)}
-                for name, targets in diagram._exposed_in.items()
+                name: {"targets": [str(end) for end in targets], "spec": _spec(diagram.inputs[name].spec)}
+                for name, targets in diagram.exposed_inputs.items()
             },
-            "outputs": {name: f"{c}.{p}" for name, (c, p) in diagram._exposed_out.items()},
+            "outputs": {name: str(end) for name, end in diagram.exposed_outputs.items()},
         }
 
     def value(self, value: Any, where: str) -> Any:
@@ -130,7 +130,7 @@ class _Writer:
 
 def _check_unchanged(diagram: Diagram, params: dict[str, Any], where: str) -> None:
     """An architecture block is rebuilt from its arguments: refuse one whose insides were swapped since."""
-    children = {id(c) for c in diagram._children.values()}
+    children = {id(c) for c in diagram.blocks.values()}
     swapped = [k for k, v in params.items() if isinstance(v, Block) and id(v) not in children]
     if swapped:
         raise TypeError(

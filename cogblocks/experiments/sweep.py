@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from cogblocks.sim import Diagram, Simulator, Trace
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["BACKENDS", "RunSpec", "SweepWarning", "grid_points", "save_results", "sweep", "sweep_seeds"]
 
@@ -43,7 +44,7 @@ class RunSpec:
 
     build: Callable[..., Diagram | Callable[[], Trace]]
     measure: Callable[[Trace], Mapping[str, Any]]
-    dt: float = 0.01
+    dt: float = BASE_STEP
     duration: float | None = None
     n_steps: int | None = None
     probes: Sequence[str] | Mapping[str, str] | None = None
@@ -118,7 +119,7 @@ def sweep(
     root_seed: int = 0,
     duration: float | None = None,
     n_steps: int | None = None,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
     probes: Sequence[str] | Mapping[str, str] | None = None,
     backend: str = "loky",
     n_jobs: int | None = None,

@@ -7,10 +7,11 @@ import json
 from typing import Any
 
 from cogblocks.cli_options import POLICY, STEP
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["add_live_parser"]
 
-DT = 0.01  # 100 Hz
+DT = BASE_STEP  # the ready diagrams run at the base step
 
 
 def _run_live(args: argparse.Namespace) -> int:

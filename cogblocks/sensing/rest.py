@@ -24,6 +24,7 @@ from filterpy.common import Q_continuous_white_noise
 from cogblocks.sensing.kalman import DEFAULT_PROCESS_NOISE, MODELS, ORDER, axis_transition
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of, positive_int
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["RestGate", "rest_cutoff", "rest_speed_bound"]
 
@@ -88,7 +89,7 @@ def rest_speed_bound(
     model: str = "ca",
     process_noise: float | None = None,
     measurement_noise: float | None = None,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
     dims: int = 3,
     quantile: float = 0.999,
 ) -> float:
@@ -168,7 +169,7 @@ def rest_cutoff(
     *,
     highest: float,
     lowest: float = 0.1,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
     **options: Any,
 ) -> float:
     """The highest low-pass cut-off (Hz, at most ``highest``) at which :func:`rest_speed_bound` is at most ``bound``.

@@ -71,6 +71,7 @@ class Block:
         self._outputs: dict[str, Output] = {}
         self._state_init: dict[str, Any] = {}
         self.name: str | None = None
+        self._parent: Any = None  # the diagram the block was added to; set by Diagram.add
         self.period = period
         self.dt: float = 0.0
         self.every: int = 1
@@ -192,6 +193,11 @@ class Block:
     def outputs(self) -> Mapping[str, Output]:
         """The block's output ports by name."""
         return self._outputs
+
+    @property
+    def parent(self) -> Any:
+        """The :class:`~cogblocks.sim.Diagram` this block was added to, or None."""
+        return self._parent
 
     @property
     def state_names(self) -> tuple[str, ...]:

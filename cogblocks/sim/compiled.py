@@ -18,6 +18,7 @@ from cogblocks.sim.ownership import leaf_blocks, private_copy, running_plans
 from cogblocks.sim.ports import Input, Output
 from cogblocks.sim.snapshot import check_snapshot, load_snapshot, save_snapshot
 from cogblocks.sim.specs import check_driven, resolve_specs
+from cogblocks.sim.timing import BASE_STEP
 
 if TYPE_CHECKING:
     from cogblocks.sim.diagram import Diagram
@@ -62,13 +63,13 @@ class CompiledDiagram:
         The diagram that was compiled.
     """
 
-    def __init__(self, diagram: Diagram, dt: float = 0.01) -> None:
+    def __init__(self, diagram: Diagram, dt: float = BASE_STEP) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise DiagramError(f"the base step dt must be a positive number of seconds, got {dt!r}")
         for plan in running_plans(diagram):
             plan._hand_over()  # the earlier plan continues on a copy; this one takes the blocks
         self.source = self.diagram = diagram
-        self._revision = diagram._revision
+        self._revision = diagram.revision
         self._stale_reason: str | None = None
         self._lock = threading.Lock()
         self.dt = float(dt)
@@ -78,7 +79,7 @@ class CompiledDiagram:
         drivers: dict[Input, Output] = {}
         external: dict[str, list[Input]] = {}
         self._flatten(diagram, "", None, leaves, periods, drivers, external)
-        self._ext_outputs = {name: self._leaf_output(diagram, name) for name in diagram._exposed_out}
+        self._ext_outputs = {name: self._leaf_output(diagram, name) for name in diagram.exposed_outputs}
         self._paths = {id(b): p for p, b in leaves.items()}
         check_driven(leaves, drivers, external, self._name)
         resolve_specs(diagram, leaves, drivers, external, self._ext_outputs, self._name)
@@ -102,7 +103,7 @@ class CompiledDiagram:
     @property
     def current(self) -> bool:
         """False once the compiled diagram has changed: the plan then refuses to run; compile again."""
-        return self.source._revision == self._revision
+        return self.source.revision == self._revision
 
     def _hand_over(self) -> None:
         """Continue on a private copy of the blocks, state included: a new plan takes the diagram's blocks."""
@@ -128,7 +129,7 @@ class CompiledDiagram:
 
     def _enter(self) -> None:
         """Take the plan for one step or run: refuse a stale plan and concurrent use."""
-        if self.source._revision != self._revision:
+        if self.source.revision != self._revision:
             raise SimulationError(
                 self._stale_reason
                 or "the diagram changed (a block added, replaced or rewired) after this plan was compiled, so "
@@ -144,35 +145,36 @@ class CompiledDiagram:
     def _flatten(self, d, prefix, period, leaves, periods, drivers, external) -> None:
 
         own_period = d.period if d.period is not None else period
-        for name, child in d._children.items():
+        for name, child in d.blocks.items():
             path = prefix + name
             if child.composite:
                 self._flatten(child, path + ".", own_period, leaves, periods, drivers, external)
             else:
                 leaves[path] = child
                 periods[path] = child.period if child.period is not None else own_period
-        for s_child, s_port, d_child, d_port in d._wires:
-            src = self._leaf_output(d._children[s_child], s_port)
-            for dst in self._leaf_inputs(d._children[d_child], d_port):
+        children = d.blocks
+        for (s_child, s_port), (d_child, d_port) in d.wires:
+            src = self._leaf_output(children[s_child], s_port)
+            for dst in self._leaf_inputs(children[d_child], d_port):
                 drivers[dst] = src
         if not prefix:
-            for name in d._exposed_in:
+            for name in d.exposed_inputs:
                 external[name] = self._leaf_inputs(d, name)
 
     def _leaf_output(self, block: Block, port: str) -> Output:
 
         while block.composite:
-            child, port = block._exposed_out[port]
-            block = block._children[child]
-        return block._outputs[port]
+            child, port = block.exposed_outputs[port]
+            block = block.blocks[child]
+        return block.outputs[port]
 
     def _leaf_inputs(self, block: Block, port: str) -> list[Input]:
 
         if not block.composite:
-            return [block._inputs[port]]
+            return [block.inputs[port]]
         found: list[Input] = []
-        for child, child_port in block._exposed_in[port]:
-            found.extend(self._leaf_inputs(block._children[child], child_port))
+        for child, child_port in block.exposed_inputs[port]:
+            found.extend(self._leaf_inputs(block.blocks[child], child_port))
         return found
 
     def _name(self, port: Input | Output) -> str:

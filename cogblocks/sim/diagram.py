@@ -4,22 +4,25 @@ from __future__ import annotations
 
 import os
 import re
+import warnings
 from collections.abc import Iterator, Mapping
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 from cogblocks.sim.block import Block
 from cogblocks.sim.errors import DiagramError
+from cogblocks.sim.graph import PortEnd, Wire
 from cogblocks.sim.ports import Input, Output
 from cogblocks.sim.signal import ANY, Signal
+from cogblocks.sim.timing import BASE_STEP
 
 if TYPE_CHECKING:
     from cogblocks.sim.compiled import CompiledDiagram
 
-__all__ = ["Diagram"]
+__all__ = ["Diagram", "PortEnd", "Wire"]
 
 PortRef = Input | Output | str
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-_REPR_BLOCKS = 12  # blocks listed by repr before "… n more"
 
 
 class Diagram(Block):
@@ -84,7 +87,7 @@ class Diagram(Block):
             raise DiagramError(f"{type(block).__name__} was not initialised: its __init__ must call super().__init__()")
         if name in self._children:
             raise DiagramError(f"the diagram already has a block named {name!r}")
-        if block is self or (isinstance(block, Diagram) and self in block._all_blocks()):
+        if block is self or (isinstance(block, Diagram) and self in block.walk()):
             raise DiagramError(f"adding {name!r} would make the diagram contain itself")
         for other_name, other in self._children.items():
             if other is block:
@@ -99,16 +102,42 @@ class Diagram(Block):
         self._changed()
         return block
 
-    def _all_blocks(self) -> Iterator[Block]:
+    def walk(self) -> Iterator[Block]:
+        """Every block inside, depth first: each child, then (for a sub-diagram) the blocks inside it."""
         for child in self._children.values():
             yield child
             if isinstance(child, Diagram):
-                yield from child._all_blocks()
+                yield from child.walk()
 
     @property
     def blocks(self) -> Mapping[str, Block]:
-        """The direct children by name."""
+        """The direct children by name (a copy: adding to it does not change the diagram)."""
         return dict(self._children)
+
+    @property
+    def wires(self) -> tuple[Wire, ...]:
+        """The wires between direct children, in the order they were connected."""
+        return tuple(Wire(PortEnd(s, sp), PortEnd(d, dp)) for s, sp, d, dp in self._wires)
+
+    @property
+    def exposed_inputs(self) -> Mapping[str, tuple[PortEnd, ...]]:
+        """Each input of this diagram and the children's inputs it feeds (read-only)."""
+        return MappingProxyType({n: tuple(PortEnd(c, p) for c, p in t) for n, t in self._exposed_in.items()})
+
+    @property
+    def exposed_outputs(self) -> Mapping[str, PortEnd]:
+        """Each output of this diagram and the child's output it carries (read-only)."""
+        return MappingProxyType({n: PortEnd(c, p) for n, (c, p) in self._exposed_out.items()})
+
+    @property
+    def revision(self) -> int:
+        """A counter bumped by every change to this diagram or a sub-diagram: plans of an older revision are stale."""
+        return self._revision
+
+    @property
+    def plan(self) -> CompiledDiagram | None:
+        """The plan of the last :meth:`compile`, or None if the diagram was never compiled (or changed since)."""
+        return self._compiled
 
     def __getitem__(self, path: str) -> Block:
         """A child block by name, or a nested one by dotted path (``"l2.blender"``)."""
@@ -263,7 +292,7 @@ class Diagram(Block):
         return old
 
     # -- compiling and running -----------------------------------------------
-    def compile(self, dt: float = 0.01) -> CompiledDiagram:
+    def compile(self, dt: float = BASE_STEP) -> CompiledDiagram:
         """Validate, flatten and order the diagram into a runnable plan.
 
         The new plan runs this diagram's own blocks (the block objects you hold
@@ -284,40 +313,53 @@ class Diagram(Block):
 
     @property
     def compiled(self) -> CompiledDiagram:
-        """The plan of the last :meth:`compile` (compiling at 10 ms if there is none)."""
+        """The plan of the last :meth:`compile`.
+
+        Compiling is explicit: without a plan this compiles at :data:`~cogblocks.sim.BASE_STEP`
+        with a :class:`DeprecationWarning` (an error in the next release); call :meth:`compile`.
+        """
+        return self._plan_for("compiled")
+
+    def _plan_for(self, what: str) -> CompiledDiagram:
+        """The current plan; without one, compile at the base step and warn that this will be an error."""
         if self._compiled is None:
-            self.compile()
-        assert self._compiled is not None
+            message = f"Diagram.{what} on a diagram with no current plan compiles it at the {BASE_STEP} s base step"
+            warnings.warn(
+                message + "; call diagram.compile(dt) first (this will raise in the next release)",
+                DeprecationWarning,
+                stacklevel=3,
+            )
+            return self.compile()
         return self._compiled
 
     def step(self, **inputs: Any) -> dict[str, Any]:
-        """Run one tick of :attr:`compiled`; see :meth:`CompiledDiagram.step`."""
-        return self.compiled.step(**inputs)
+        """Run one tick of the plan of the last :meth:`compile`; see :meth:`CompiledDiagram.step`."""
+        return self._plan_for("step()").step(**inputs)
 
     def reset(self) -> None:
         """Reset the compiled plan (every block's state and the tick counter)."""
         if self._compiled is not None:
             self._compiled.reset()
         else:
-            for block in self._all_blocks():
+            for block in self.walk():
                 if not isinstance(block, Diagram):
                     block.reset()
 
     def state_dict(self) -> dict[str, Any]:
         """Snapshot of the whole diagram (every block's state, outputs and the tick)."""
-        return self.compiled.state_dict()
+        return self._plan_for("state_dict()").state_dict()
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         """Restore a snapshot taken with :meth:`state_dict`."""
-        self.compiled.load_state_dict(state)
+        self._plan_for("load_state_dict()").load_state_dict(state)
 
     def save_state(self, path: str | os.PathLike) -> None:
         """Write the snapshot of :attr:`compiled` to an ``.npz`` file; see :meth:`CompiledDiagram.save_state`."""
-        self.compiled.save_state(path)
+        self._plan_for("save_state()").save_state(path)
 
     def load_state(self, path: str | os.PathLike) -> None:
         """Load a snapshot file into :attr:`compiled`; see :meth:`CompiledDiagram.load_state`."""
-        self.compiled.load_state(path)
+        self._plan_for("load_state()").load_state(path)
 
     def output(self, k: int) -> None:  # pragma: no cover - diagrams are flattened
         raise RuntimeError("a Diagram is flattened at compile time and never runs as a block")
@@ -347,17 +389,9 @@ class Diagram(Block):
         draw(self, path)
 
     def __repr__(self) -> str:
-        label = f" {self.name!r}" if self.name else ""
-        shown = list(self._children.items())[:_REPR_BLOCKS]
-        blocks = ", ".join(
-            f"{name}: {type(b).__name__}" + (f" ({len(b._children)} blocks)" if isinstance(b, Diagram) else "")
-            for name, b in shown
-        )
-        if len(self._children) > len(shown):
-            blocks += f", … {len(self._children) - len(shown)} more"
-        ins = ", ".join(f"{n} -> {', '.join(f'{c}.{p}' for c, p in t)}" for n, t in self._exposed_in.items())
-        outs = ", ".join(f"{n} <- {c}.{p}" for n, (c, p) in self._exposed_out.items())
-        return f"<{type(self).__name__}{label} blocks=[{blocks}] inputs=({ins}) outputs=({outs})>"
+        from cogblocks.sim.render import summary
+
+        return summary(self)
 
 
 def _check_specs(src_name: str, src: Signal, dst_name: str, dst: Signal) -> None:

@@ -27,7 +27,7 @@ _SEARCH_DEPTH = 4
 
 def leaf_blocks(diagram: Any) -> list[Any]:
     """The leaf blocks of ``diagram``, through its sub-diagrams."""
-    return [node for node in _nodes(diagram) if not hasattr(node, "_children")]
+    return [node for node in _nodes(diagram) if not node.composite]
 
 
 def running_plans(diagram: Any) -> list[Any]:
@@ -54,13 +54,13 @@ def private_copy(obj: Any, diagram: Any, keep: tuple[Any, ...] = ()) -> Any:
         Naming the block that cannot be deep-copied.
     """
     memo: dict[int, Any] = {}
-    parent = getattr(diagram, "_parent", None)
+    parent = diagram.parent
     if parent is not None:
         memo[id(parent)] = None
     seen: set[int] = set()
     for node in _nodes(diagram):
-        for attribute in ("_compiled", "_plan"):  # other plans are not copied along
-            plan = node.__dict__.get(attribute)
+        # other plans are not copied along: a diagram's latest plan, the plan that runs a leaf
+        for plan in (node.plan if node.composite else None, node.__dict__.get("_plan")):
             if plan is not None:
                 memo[id(plan)] = None
         for value in node.__dict__.values():
@@ -77,7 +77,7 @@ def private_copy(obj: Any, diagram: Any, keep: tuple[Any, ...] = ()) -> Any:
 
 def _copyable(block: Any, memo: dict[int, Any]) -> bool:
     alone = dict(memo)
-    alone[id(block.__dict__.get("_parent"))] = None  # the block alone, not the diagram around it
+    alone[id(block.parent)] = None  # the block alone, not the diagram around it
     try:
         copy.deepcopy(block, alone)
     except Exception:
@@ -87,8 +87,8 @@ def _copyable(block: Any, memo: dict[int, Any]) -> bool:
 
 def _nodes(diagram: Any) -> list[Any]:
     found = [diagram]
-    for child in diagram._children.values():
-        found.extend(_nodes(child) if hasattr(child, "_children") else [child])
+    for child in diagram.blocks.values():
+        found.extend(_nodes(child) if child.composite else [child])
     return found
 
 

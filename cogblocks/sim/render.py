@@ -66,7 +66,7 @@ def _leaf_label(block, name: str) -> str:
 def _wire_ends(d: Diagram, prefix: str, child: str, port: str, inbound: bool) -> str:
     """Node id of a wire end; sub-diagram ends point at the sub-diagram's boundary node."""
 
-    block = d._children[child]
+    block = d.blocks[child]
     if block.composite:
         side = "in" if inbound else "out"
         return _node_id(f"{prefix}{child}.{side}_{port}")
@@ -82,11 +82,11 @@ def to_mermaid(d: Diagram) -> str:
 
 def _mermaid_body(d: Diagram, prefix: str, lines: list[str], indent: str) -> None:
 
-    for name in d._exposed_in:
+    for name in d.exposed_inputs:
         lines.append(f'{indent}{_node_id(prefix + "in_" + name)}(["{name}"])')
-    for name in d._exposed_out:
+    for name in d.exposed_outputs:
         lines.append(f'{indent}{_node_id(prefix + "out_" + name)}(["{name}"])')
-    for name, block in d._children.items():
+    for name, block in d.blocks.items():
         if block.composite:
             sub = prefix + name + "."
             lines.append(f'{indent}subgraph {_node_id(prefix + name)}["{name}: {type(block).__name__}"]')
@@ -94,16 +94,16 @@ def _mermaid_body(d: Diagram, prefix: str, lines: list[str], indent: str) -> Non
             lines.append(f"{indent}end")
         else:
             lines.append(f'{indent}{_node_id(prefix + name)}["{_leaf_label(block, name)}"]')
-    for s_child, s_port, d_child, d_port in d._wires:
+    for (s_child, s_port), (d_child, d_port) in d.wires:
         src = _wire_ends(d, prefix, s_child, s_port, inbound=False)
         dst = _wire_ends(d, prefix, d_child, d_port, inbound=True)
         lines.append(f"{indent}{src} -->|{s_port} → {d_port}| {dst}")
-    for name, targets in d._exposed_in.items():
+    for name, targets in d.exposed_inputs.items():
         for child, port in targets:
             lines.append(
                 f"{indent}{_node_id(prefix + 'in_' + name)} -->|{port}| {_wire_ends(d, prefix, child, port, True)}"
             )
-    for name, (child, port) in d._exposed_out.items():
+    for name, (child, port) in d.exposed_outputs.items():
         lines.append(
             f"{indent}{_wire_ends(d, prefix, child, port, False)} -->|{port}| {_node_id(prefix + 'out_' + name)}"
         )
@@ -119,11 +119,11 @@ def to_dot(d: Diagram) -> str:
 
 def _dot_body(d: Diagram, prefix: str, lines: list[str], indent: str) -> None:
 
-    for name in d._exposed_in:
+    for name in d.exposed_inputs:
         lines.append(f'{indent}{_node_id(prefix + "in_" + name)} [label="{name}", shape=ellipse];')
-    for name in d._exposed_out:
+    for name in d.exposed_outputs:
         lines.append(f'{indent}{_node_id(prefix + "out_" + name)} [label="{name}", shape=ellipse];')
-    for name, block in d._children.items():
+    for name, block in d.blocks.items():
         if block.composite:
             lines.append(f"{indent}subgraph cluster_{_node_id(prefix + name)} {{")
             lines.append(f'{indent}    label="{name}: {type(block).__name__}";')
@@ -131,14 +131,29 @@ def _dot_body(d: Diagram, prefix: str, lines: list[str], indent: str) -> None:
             lines.append(f"{indent}}}")
         else:
             lines.append(f'{indent}{_node_id(prefix + name)} [label="{_leaf_label(block, name)}"];')
-    for s_child, s_port, d_child, d_port in d._wires:
+    for (s_child, s_port), (d_child, d_port) in d.wires:
         src = _wire_ends(d, prefix, s_child, s_port, inbound=False)
         dst = _wire_ends(d, prefix, d_child, d_port, inbound=True)
         lines.append(f'{indent}{src} -> {dst} [label="{s_port} → {d_port}"];')
-    for name, targets in d._exposed_in.items():
+    for name, targets in d.exposed_inputs.items():
         for child, port in targets:
             dst = _wire_ends(d, prefix, child, port, True)
             lines.append(f'{indent}{_node_id(prefix + "in_" + name)} -> {dst} [label="{port}"];')
-    for name, (child, port) in d._exposed_out.items():
+    for name, (child, port) in d.exposed_outputs.items():
         src = _wire_ends(d, prefix, child, port, False)
         lines.append(f'{indent}{src} -> {_node_id(prefix + "out_" + name)} [label="{port}"];')
+
+
+def summary(d: Diagram, shown: int = 12) -> str:
+    """One line naming the diagram's first ``shown`` blocks (then "… n more") and its exposed ports."""
+    children = list(d.blocks.items())
+    blocks = ", ".join(
+        f"{name}: {type(b).__name__}" + (f" ({len(b.blocks)} blocks)" if b.composite else "")
+        for name, b in children[:shown]
+    )
+    if len(children) > shown:
+        blocks += f", … {len(children) - shown} more"
+    ins = ", ".join(f"{n} -> {', '.join(map(str, t))}" for n, t in d.exposed_inputs.items())
+    outs = ", ".join(f"{n} <- {end}" for n, end in d.exposed_outputs.items())
+    label = f" {d.name!r}" if d.name else ""
+    return f"<{type(d).__name__}{label} blocks=[{blocks}] inputs=({ins}) outputs=({outs})>"

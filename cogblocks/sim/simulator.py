@@ -12,6 +12,7 @@ import numpy as np
 from cogblocks.sim.compiled import CompiledDiagram
 from cogblocks.sim.diagram import Diagram
 from cogblocks.sim.errors import DiagramError
+from cogblocks.sim.timing import BASE_STEP
 from cogblocks.sim.trace import Trace
 
 __all__ = ["Simulator"]
@@ -50,7 +51,7 @@ class Simulator:
     def __init__(
         self,
         diagram: Diagram | CompiledDiagram,
-        dt: float = 0.01,
+        dt: float = BASE_STEP,
         *,
         probes: Sequence[str] | Mapping[str, str] | None = None,
         decimate: int = 1,

@@ -45,7 +45,7 @@ def resolve_specs(
     name: Callable[[Any], str],
 ) -> None:
     """Give every output copying an input (``like=``) and every input its concrete spec; refuse mismatches."""
-    ext_specs = {inp: diagram._inputs[n].spec for n, targets in external.items() for inp in targets}
+    ext_specs = {inp: diagram.inputs[n].spec for n, targets in external.items() for inp in targets}
 
     def source_spec(inp: Input) -> Signal | None:
         if inp in drivers:
@@ -95,14 +95,14 @@ def resolve_specs(
             if problem:
                 raise DiagramError(f"cannot connect {src_name} {spec} to {name(inp)} {inp.declared}: {problem}")
             inp.spec = inp.declared.merge(spec)
-    for out_name, port in diagram._outputs.items():
+    for out_name, port in diagram.outputs.items():
         port.spec = exposed_outputs[out_name].spec
 
 
 def _refuse_open_diagram_inputs(diagram: Any, pending: list, external: dict, name: Callable[[Any], str]) -> None:
     """Name the diagram inputs without a full spec that leave generic blocks with nothing to copy."""
     for input_name, targets in external.items():
-        spec = diagram._inputs[input_name].spec
+        spec = diagram.inputs[input_name].spec
         fed = [name(o) for o in pending if o.block._inputs[o.like] in targets]
         if fed and not spec.concrete:
             raise DiagramError(

@@ -26,6 +26,7 @@ from cogblocks.amplification.corrector import ACTIONS, corrector_state, reward_c
 from cogblocks.blocks import Playback
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim import Diagram, Simulator
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["AmplificationEnv", "Episodes", "record_episodes"]
 
@@ -132,7 +133,7 @@ class AmplificationEnv:
     """
 
     def __init__(
-        self, episodes: Episodes, *, gain: float = 6.0, interval: int = 10, dt: float = 0.01, gamma: float = 0.99
+        self, episodes: Episodes, *, gain: float = 6.0, interval: int = 10, dt: float = BASE_STEP, gamma: float = 0.99
     ) -> None:
         self.episodes = episodes
         self.gain, self.interval, self.dt, self.gamma = gain, interval, dt, gamma

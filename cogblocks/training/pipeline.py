@@ -34,6 +34,7 @@ from cogblocks.data.loaders import load_csv, load_npz, load_velocity_data_mat
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.diagrams.amplification import run_amplification
 from cogblocks.diagrams.amplification_setup import AmplificationSetup, blender_networks, optimised_subspace
+from cogblocks.sim.timing import BASE_STEP
 from cogblocks.training.amplification_env import record_episodes
 from cogblocks.training.corrector import CorrectorConfig, train
 from cogblocks.training.encoder import EncoderConfig, cross_validate
@@ -71,11 +72,13 @@ def load_library(
     """
     suffix = Path(path).suffix.lower()
     if suffix == ".mat":
-        return load_velocity_data_mat(path, max_len, 0.01 if dt is None else dt, label_field=label_field or "Condition")
+        return load_velocity_data_mat(
+            path, max_len, BASE_STEP if dt is None else dt, label_field=label_field or "Condition"
+        )
     if suffix == ".npz":
         return load_npz(path, label_field=label_field or "fear", dt=dt)
     if suffix == ".csv":
-        return load_csv(path, max_len, 0.01 if dt is None else dt, label_field=label_field or "fear")
+        return load_csv(path, max_len, BASE_STEP if dt is None else dt, label_field=label_field or "fear")
     raise ValueError(f"{path}: unknown library format '{suffix}' (expected .mat, .npz or .csv)")
 
 
