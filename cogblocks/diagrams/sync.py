@@ -14,9 +14,8 @@ from cogblocks.blocks import Demux, Mux, Probe, Substitute
 from cogblocks.blocks.angles import wrap_pi
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.phase import PhaseEstimator
-from cogblocks.sim import Block, Diagram, Simulator, Trace
+from cogblocks.sim import BASE_STEP, Block, Diagram, Simulator, Trace
 from cogblocks.sim.params import finite_number, one_of
-from cogblocks.sim.timing import BASE_STEP
 from cogblocks.sync import ArmPositions, Blender, KuramotoGroup, MeanPhaseMotion, MotionComputer, OrderParameter
 from cogblocks.sync.l2 import L2Sync
 
