@@ -73,7 +73,22 @@ def _replay(setup, humans: np.ndarray, variant: str) -> tuple[np.ndarray, int]:
         if variant == "realistic":  # what `cogblocks run amplification` runs: the blender ensemble, OPTIMISED
             blender = _optimal_blender(setup, blender_networks(setup.encoder))
         elif variant not in ("table", "rl"):
-            blender = OptimalBlender(setup.movements, setup.encoder, setup.table, solver=variant)
+            blender = OptimalBlender(
+                setup.movements,
+                setup.encoder,
+                setup.table,
+                solver=variant,
+                time_limit_ms=8.0,
+                solve_ticks=1,
+                iterations=10,
+                realism=30.0,
+                margin=0.05,
+                removal_margin=None,
+                emit="human",
+                guard_rest=False,
+                neighbours=1,
+                terminal_margin=5.0,
+            )  # the solver comparison's setting, not the shipped one
         else:
             blender = None
         d = pop_amplification(

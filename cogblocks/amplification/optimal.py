@@ -26,21 +26,20 @@ from typing import Any
 import numpy as np
 
 from cogblocks.amplification.blending import add_blending_ports
-from cogblocks.amplification.emission import EMISSIONS, emit_tick, guard_settings, planned_movement, rebased
+from cogblocks.amplification.decision import DecisionSolve
+from cogblocks.amplification.emission import EMISSIONS, emit_tick, guard_settings
 from cogblocks.amplification.encoder import (
     CLIP_HIGH,
     N_POINTS,
     REST_SPEED,
     EncoderNet,
-    movement_length,
     resampling_matrix,
 )
-from cogblocks.amplification.encoder_casadi import _U_SCALE, _solver, solve_decision
+from cogblocks.amplification.encoder_casadi import _solver
 from cogblocks.amplification.linearised import GRADIENTS, LinearisedSolver, one_blas_thread
 from cogblocks.amplification.members import StackedNetworks
 from cogblocks.amplification.neighbours import NeighbourPrediction
-from cogblocks.amplification.past import follow_past
-from cogblocks.amplification.plan import PlanResult, library_prediction, plan_problem, sigmoid
+from cogblocks.amplification.plan import PlanResult
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.amplification.subspace import MovementSubspace, checked_subspace
 from cogblocks.blocks.samples import plausible
@@ -51,7 +50,7 @@ from cogblocks.sim.params import finite_number, flag, one_of, positive_int
 __all__ = ["OptimalBlender", "PlanResult"]
 
 
-class OptimalBlender(Block):
+class OptimalBlender(DecisionSolve, Block):
     """Blending by optimisation: ``v_a = v_h + u + v_u``, ``u`` re-planned at every decision (Problem 13).
 
     A drop-in replacement for :class:`~cogblocks.amplification.VelocityBlender` (the same ports):
@@ -89,6 +88,16 @@ class OptimalBlender(Block):
     :attr:`results` has every decision, :attr:`solve_ms` the times of those that ran the solver and :attr:`tick_ms`
     the CPU time of every tick that worked on one (building, iterating, checking; not the ticks that only wait).
 
+    What ships: the defaults are the validated setting ``cogblocks run amplification --variant optimised``
+    runs: the linearised solver (sequential QPs on the exact networks), a decision's solve spread over 6
+    ticks of at most 4 ms of CPU time each, up to 40 iterations; plans for ε̂ ≥ 0.99999 encoding fear and
+    ε̂ ≤ 0.00001 removing it (``margin = removal_margin = 0.09999``) and for 5 mm of δ_pos
+    (``terminal_margin = 15``); a realism penalty of 3000 (give it a ``subspace``: the shipped one keeps 12
+    principal directions of the desired class, :func:`cogblocks.diagrams.amplification_setup.optimised_subspace`);
+    the human predicted as the mean of its 5 nearest library movements; the last plan emitted as planned
+    (``emit="tail"``) under a guard that predicts a human at rest to stay at rest. The lighter casadi setting
+    the solver comparisons use is ``solver="sqpmethod", solve_ticks=1, iterations=10, emit="human"``.
+
     Ports
     -----
     v_h, v_r, v_u, nearest, reference, decisions : inputs
@@ -117,34 +126,35 @@ class OptimalBlender(Block):
     e_des : {0, 1}
         1: encode fear (ε̂ > 0.9); 0: remove it (ε̂ < 0.1).
     margin : float
-        Planned ε̂ beyond the clipping threshold, against the prediction's error (0.05: ε̂ ≥ 0.95, or ≤ 0.05).
+        Planned ε̂ beyond the clipping threshold, against the prediction's error (0.09999: ε̂ ≥ 0.99999).
     removal_margin : float, optional
-        The margin when removing fear (``e_des = 0``); by default ``margin``.
+        The margin when removing fear (``e_des = 0``; 0.09999: ε̂ ≤ 0.00001); None: ``margin``.
     delta_pos : float
         δ_pos in mm (20).
     terminal_margin : float
-        mm of δ_pos kept in reserve by the plan (5: the plan asks for 15 mm).
+        mm of δ_pos kept in reserve by the plan (15: the plan asks for 5 mm).
     end_speed : float
         Speed (mm/s) of the last planned sample along the reach direction; above the classifier's
         rest speed (1 mm/s) so that the restricted length is the planned one.
     knot_spacing : int
         Samples between knots (ΔT = 10).
     time_limit_ms : float
-        CPU-time limit (8 ms), so that the plans do not depend on the machine's load. sqpmethod and IPOPT: of one
+        CPU-time limit (4 ms), so that the plans do not depend on the machine's load. sqpmethod and IPOPT: of one
         solve (sqpmethod: a callback stops it before an iteration that, as long as the last, would end past it;
         IPOPT: ``max_cpu_time``), building and checking on top. linearised: of all the block does for a decision in
         one tick; no iteration starts that, as long as the last, would end past it (the last check's time kept in
         reserve on the committing tick), except that a decision with no iteration yet runs one.
     solve_ticks : int
-        Ticks one decision's solve may span (linearised only; 1). With more, the decision at tick ``T`` plans from
+        Ticks one decision's solve may span (linearised only; 6). With more, the decision at tick ``T`` plans from
         ``T + solve_ticks − 1`` on, the plan in force (or the table's blend, or the pass-through) covering the ticks
         before, the solve resuming at every tick until then, each within ``time_limit_ms``; committed at that tick.
     iterations : int
-        Most iterations of one linearised solve (10).
+        Most iterations of one linearised solve (40).
     solver : {"sqpmethod", "ipopt", "linearised"}
-        casadi's SQP with ``qrqp`` (default), IPOPT (about 0.5 ms per iteration of overhead at this size), or
+        casadi's SQP with ``qrqp``, IPOPT (about 0.5 ms per iteration of overhead at this size), or
         :class:`~cogblocks.amplification.linearised.LinearisedSolver`: sequential QPs on the exact ReLU networks in
-        NumPy (no Hessian; the first plan from no correction; a run out of time keeps its best acceptable iterate).
+        NumPy (default; no Hessian; the first plan from no correction; a run out of time keeps its best acceptable
+        iterate).
     sharpness : float
         β of the softplus that replaces ReLU inside casadi's solvers (10).
     rest_speed : float
@@ -154,13 +164,13 @@ class OptimalBlender(Block):
         the cost gains ``realism · r²/(100 mm/s)²``, ``r`` the altered movement's classifier input's
         distance from the subspace, so the plan stays near real movements of the class.
     realism : float
-        Weight of that penalty against ``Σ‖u‖²`` (only with ``subspace``).
+        Weight of that penalty against ``Σ‖u‖²`` (3000; only with ``subspace``).
     emit : {"human", "plan", "tail"}
-        What a plan emits: ``v_h + u`` (default) or the plan itself, its prediction plus ``u``, so that the
+        What a plan emits: ``v_h + u`` or the plan itself, its prediction plus ``u``, so that the
         emitted movement is the checked one, under a terminal guard; ``"tail"``: only a plan committed within
-        ``knot_spacing`` samples of its end emits itself (:mod:`~cogblocks.amplification.emission`).
+        ``knot_spacing`` samples of its end emits itself (default; :mod:`~cogblocks.amplification.emission`).
     guard_rest : bool
-        Emitting a plan: the guard predicts a human measured at or below ``rest_speed`` to stay at rest (False).
+        Emitting a plan: the guard predicts a human measured at or below ``rest_speed`` to stay at rest (True).
     guard_margin : float
         mm of δ_pos the guard keeps in reserve (0: it bounds the final gap at δ_pos).
     track_past : bool
@@ -168,7 +178,7 @@ class OptimalBlender(Block):
         into its problem in place of the prediction, the iterations going on from there
         (:mod:`~cogblocks.amplification.past`).
     neighbours : int
-        The prediction is η_i (1) or the mean of as many movements nearest to the human (:mod:`.neighbours`).
+        The prediction is η_i (1) or the mean of as many movements nearest to the human (5; :mod:`.neighbours`).
     gradient, predict_setup : str, bool
         Linearised: how the members' gradients are taken, whether the prediction of an iteration's time counts the
         solve's preparation (``"blocks"``, True: :class:`~cogblocks.amplification.linearised.LinearisedSolver`).
@@ -193,27 +203,27 @@ class OptimalBlender(Block):
         table: SolutionTable | None = None,
         *,
         e_des: int = 1,
-        margin: float = 0.05,
+        margin: float = 0.09999,
         delta_pos: float = 20.0,
-        terminal_margin: float = 5.0,
+        terminal_margin: float = 15.0,
         end_speed: float = 5.0,
         knot_spacing: int = 10,
-        time_limit_ms: float = 8.0,
-        solver: str = "sqpmethod",
+        time_limit_ms: float = 4.0,
+        solver: str = "linearised",
         sharpness: float = 10.0,
         rest_speed: float = REST_SPEED,
         subspace: MovementSubspace | None = None,
-        realism: float = 30.0,
-        solve_ticks: int = 1,
-        iterations: int = 10,
-        emit: str = "human",
+        realism: float = 3000.0,
+        solve_ticks: int = 6,
+        iterations: int = 40,
+        emit: str = "tail",
         track_past: bool = False,
-        removal_margin: float | None = None,
-        guard_rest: bool = False,
+        removal_margin: float | None = 0.09999,
+        guard_rest: bool = True,
         guard_margin: float = 0.0,
         gradient: str = "blocks",
         predict_setup: bool = True,
-        neighbours: int = 1,
+        neighbours: int = 5,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -273,11 +283,12 @@ class OptimalBlender(Block):
         margin = self.margin if self.e_des else self.removal_margin
         self._z_target = math.log((CLIP_HIGH + margin) / (1.0 - CLIP_HIGH - margin))
         self._z_clip = math.log(CLIP_HIGH / (1.0 - CLIP_HIGH))  # also −logit(CLIP_LOW)
-        self._pending: dict[str, Any] | None = None
+        self.add_scratch("_pending", None)  # what output() decided, committed by update()
         self._job: dict[str, Any] | None = None  # a decision whose solve spans several ticks
-        self._check_s = 0.0  # CPU seconds of the last outcome check: kept in reserve on a committing tick
-        self.tick_ms: list[float] = []
-        self.guarded_ticks: list[int] = []
+        # CPU seconds of the last outcome check, kept in reserve on a committing tick: a measurement, not state
+        self.add_scratch("_check_s", 0.0)
+        self.add_scratch("tick_ms", [])  # records for inspection (see Notes), not state
+        self.add_scratch("guarded_ticks", [])
         n = library.max_len
         add_blending_ports(self)
         self.add_state("human", np.zeros((n, 3)))  # v_h received, by tick
@@ -292,7 +303,7 @@ class OptimalBlender(Block):
         self.add_state("multipliers", np.zeros(len(networks) + 3))  # warm start: networks, terminal, speed, slack
         self.add_state("fallbacks", 0)
         self._neighbours.declare(self)
-        self.results: list[PlanResult] = []
+        self.add_scratch("results", [])
 
     def setup(self) -> None:
         # build every solver and resampling matrix a decision may need now, not in the middle of the loop
@@ -343,155 +354,6 @@ class OptimalBlender(Block):
             self.human[t] = self.v_h.value if plausible(self.v_h.value) else 0.0
             self.altered[t] = self.v_a.value if plausible(self.v_a.value) else 0.0
             self._neighbours.record(self, t)
-
-    # --- one decision ---------------------------------------------------------------------------------
-
-    def _work(self, t: int, started: float) -> dict[str, Any]:
-        """This tick's work on decisions: the state to commit in the update phase (with ``result`` when one ends)."""
-        new: dict[str, Any] = {}
-        if int(self.decisions.value) > self.handled and t < len(self.human):
-            if self._job is not None:  # a new decision before the last one's plan took effect: end that one now
-                if self._job["problem"] is not None:
-                    new["solving"] = True
-                new.update(self._finish(t, {}))
-            new["handled"] = int(self.decisions.value)
-            self._job = self._begin(t, {**self._in_force(), **new})
-        job = self._job
-        if job is None:
-            return new
-        job["ticks"] += 1
-        commit = t >= job["t0"] or job["problem"] is None
-        if job["problem"] is not None and (commit or job["ticks"] == 1):
-            new["solving"] = True  # building, checking: ticks that only wait for the plan's tick are not counted
-        if self.track_past and job["run"] is not None and job["ticks"] > 1:
-            follow_past(self, job, t)  # the ticks since the decision were emitted: the solve goes on with them
-            new["solving"] = True
-        if job["run"] is not None and not job["run"].finished:
-            # on the committing tick the last check's time stays in reserve; a decision never left without
-            # any iteration (as the single-tick solve, which always runs one)
-            deadline = started + self.time_limit_ms / 1e3 - (self._check_s if commit else 0.0)
-            done = job["run"].done
-            job["run"].run(deadline, at_least_one=commit and done == 0)
-            if job["run"].done > done:
-                new["solving"] = True
-        job["cpu"] += time.thread_time() - started
-        if commit:
-            new.update(self._finish(t, new))
-        return new
-
-    def _begin(self, t: int, state: dict[str, Any]) -> dict[str, Any]:
-        """Start the decision at tick ``t``: its problem, planned from ``t + solve_ticks − 1`` on, and its solve."""
-        nearest, reference = int(self.nearest.value), int(self.reference.value)
-        lib, n = self.library, len(self.human)
-        t0 = min(t + self.solve_ticks - 1, n - 1)
-        at_rest = t == 0 or np.linalg.norm(self.human[t - 1]) <= self.rest_speed
-        held = library_prediction(self._neighbours.basis(self, nearest), self.human, t, moving=not at_rest)
-        anchor = held[t0 - 1]  # emitting a plan, the prediction at t0 − 1
-        # encoding fear, the plan lasts at least as long as η_i's movement; removing it, the reference's length
-        # is enough: the altered movement may end before the human's, having covered the same distance sooner
-        length = max(state["end"], int(lib.length[reference]), int(lib.length[nearest]) if self.e_des else 0)
-        if not at_rest and (self.e_des or state["end"] == 0):
-            length = max(length, t0 + self.knot_spacing)
-        length = min(length, n)
-        predicted = np.where(np.arange(n)[:, None] < t, 0.0, held)
-        job = {"t": t, "t0": t0, "length": length, "predicted": predicted, "run": None, "problem": None,
-               "ticks": 0, "cpu": 0.0, "reference": reference, "anchor": anchor}  # fmt: skip
-        if length <= t0:  # the planned movement is over: nothing left to decide
-            return job
-        if t0 > t:  # the ticks before t0 emit what the state in force emits, on the prediction
-            altered = self._emission(t, predicted, state)
-            human = np.concatenate([self.human[:t], predicted[t:]])
-        else:
-            altered, human = self.altered, self.human
-        problem = plan_problem(
-            t0, length, predicted, altered, human, self.library.velocity[reference], self.knot_spacing, self.dt,
-            [self._sign, self._z_target, self.end_speed, self._delta], self.subspace, self.realism, self.kinematics,
-        )  # fmt: skip
-        job["problem"] = problem
-        w0 = self._initial_guess(problem, predicted, reference, nearest)
-        if self.solver == "linearised":
-            job["run"] = self._linear.start(
-                problem, w0, self._z_target, self._z_clip, self._delta, self.delta_pos, self.iterations
-            )
-        else:
-            job["solved"] = solve_decision(self, problem, w0)  # knots (None: fall back), multipliers, status
-        return job
-
-    def _finish(self, t: int, new: dict[str, Any]) -> dict[str, Any]:
-        """End the decision in flight at tick ``t``: its plan (or the fallback) and :class:`PlanResult`."""
-        job, self._job = self._job, None
-        checking = time.thread_time()
-        out: dict[str, Any] = {}
-        problem = job["problem"]
-        if problem is None:
-            status = "ended"
-        else:
-            if job["run"] is not None:
-                w, status, _ = job["run"].result()
-                multipliers = np.zeros(len(self.networks) + 3)
-            else:
-                w, multipliers, status = job["solved"]
-            t0, length = job["t0"], job["length"]
-            if w is None:
-                out["fallbacks"] = self.fallbacks + 1
-                out["multipliers"] = np.zeros(len(self.networks) + 3)
-                if self.end == 0 and self.table is not None:
-                    out["table_c"] = self.table.lookup(int(self.nearest.value), job["reference"])
-            else:
-                plan = self.plan.copy()
-                plan[t0:length] = problem["phi0"][:, None] * problem["u_prev"] + problem["phi"] @ w.reshape(3, -1).T
-                plan[length:] = 0.0
-                out.update(plan=plan, end=length, table_c=math.nan, multipliers=multipliers)
-                if self.emit != "human":  # emitted as planned: re-anchored on what was emitted, v_a continuous
-                    out["as_planned"] = planned = int(self.emit == "plan" or length - t0 <= self.knot_spacing)
-                    emitted = self.altered[t0 - 1] if planned and t >= t0 > 0 else None
-                    out["plan"], out["basis"] = rebased(plan, self.basis, job["predicted"], t0, problem["phi0"],
-                                                        problem["u_prev"], emitted, job["anchor"])  # fmt: skip
-        state = {**self._in_force(), **new, **out}
-        eps, distance = self._outcome(t, job["predicted"], state)
-        now = time.thread_time()
-        self._check_s = now - checking
-        cpu = job["cpu"] + now - checking  # the ticks before, and this tick's check (its solving is counted)
-        out["result"] = PlanResult(job["t"], state["end"], eps, distance, cpu * 1e3, status, job["ticks"])
-        return out
-
-    def _initial_guess(
-        self, problem: dict[str, Any], predicted: np.ndarray, reference: int, nearest: int
-    ) -> np.ndarray:
-        """The plan in force at the new knots; at the first plan, the table's blend on the prediction."""
-        knots = problem["knots"]
-        if self.end > 0:
-            guess = self.plan[knots]
-        elif self.table is not None and self.solver != "linearised":
-            c = self.table.lookup(nearest, reference)
-            guess = (1.0 - c) * (self.library.velocity[reference, knots] - predicted[knots])
-        else:
-            guess = np.zeros((len(knots), 3))
-        return guess.T.reshape(-1) / _U_SCALE
-
-    def _in_force(self) -> dict[str, Any]:
-        """The state that decides what the block emits: the plan, its length, the table's c (and the plan's basis)."""
-        state = {"plan": self.plan, "end": self.end, "table_c": self.table_c}
-        return state | ({"basis": self.basis, "as_planned": self.as_planned} if self.emit != "human" else {})
-
-    def _logit(self, x: np.ndarray) -> float:
-        """The logit of the least favourable network for ``e_des`` (the minimum of ``sign·z``, times ``sign``)."""
-        return float(self._sign * np.min(self._sign * self._stack.logits(x)))
-
-    def _emission(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> np.ndarray:
-        """The movement emitted under ``state`` (the past, then from ``t`` on) if the human follows ``predicted``."""
-        reference = self.library.velocity[int(self.reference.value)]
-        return planned_movement(t, self.altered, predicted, state, reference, self.emit)
-
-    def _outcome(self, t: int, predicted: np.ndarray, state: dict[str, Any]) -> tuple[float, float]:
-        """ε̂ and terminal distance (mm) of the movement emitted under ``state`` if the human follows ``predicted``."""
-        human = np.concatenate([self.human[:t], predicted[t:]])
-        altered = self._emission(t, predicted, state)
-        distance = float(np.linalg.norm(self.dt * (altered - human).sum(axis=0)))
-        length = movement_length(altered, self.rest_speed)
-        if length == 0:
-            return math.nan, distance
-        return sigmoid(self._logit(self._stack.inputs(altered[:length], self.dt, self.rest_speed))), distance
 
     def member_eps(self, velocity: np.ndarray) -> np.ndarray:
         """ε̂ of every constrained network for a padded movement (T, 3), as the block's checks classify it

@@ -154,6 +154,7 @@ class LibraryProjector(Block):
         if self._nearest_set.size == 0 or self._reference_set.size == 0:
             raise ValueError("LibraryProjector: the library needs candidate movements with and without the emotion")
         self.library = library
+        self.add_scratch("projection", None)  # the library's layout and the distance work buffers
         self.projection = PrefixProjection(library.velocity, metric=metric, dtype=dtype, block=self.interval)
         self.add_input("velocity", Signal(shape=None, unit="mm/s"), feedthrough=False)
         self.add_input("count", COUNT, feedthrough=False)

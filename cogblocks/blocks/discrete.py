@@ -231,8 +231,8 @@ class LowPass(Block):
         if self.gaps == "repeat":  # only then: "hold" keeps a state a linearisation can perturb freely
             self.add_state("last", np.zeros(shape))  # the last finite value of each element
             self.add_state("seen", False)  # a wholly finite sample has arrived
-            self._last_next = np.zeros(shape)
-        self._z_next = np.zeros_like(self.z)
+            self.add_scratch("_last_next", np.zeros(shape))  # the tick's new `last`, committed in update()
+        self.add_scratch("_z_next", np.zeros_like(self.z))  # the tick's new `z`, committed in update()
         extra = (slice(None), slice(None)) + (None,) * len(shape)
         self._zi_unit = self._zi_unit[extra]
 

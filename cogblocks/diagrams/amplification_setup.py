@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import os
 import warnings
 from collections.abc import Sequence
@@ -10,7 +11,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from cogblocks.amplification import EncoderNet, SolutionTable, load_encoder, solution_table
+from cogblocks.amplification import EncoderNet, OptimalBlender, SolutionTable, load_encoder, solution_table
 from cogblocks.amplification.judges import (
     BLENDER_ENSEMBLE,
     BLENDER_KINEMATIC_ENSEMBLE,
@@ -26,6 +27,7 @@ from cogblocks.data.reach import ReachLibrary, generate_reach_library
 
 __all__ = [
     "BLENDER_WITH_ENCODER",
+    "COMPONENTS",
     "CONSTRAINED_MEMBERS",
     "OPTIMISED",
     "AmplificationSetup",
@@ -36,30 +38,30 @@ __all__ = [
     "optimised_subspace",
 ]
 
-#: How the validation runs the optimised blender (chosen on an inner split of the training part and, since the
-#: seventh round, validation libraries; see docs/pop-amplification.md): the sequential-QP solver on the exact
-#: networks, spread over 6 ticks of at most 4 ms of CPU time each (building, solving and checking included; 8
-#: until the seventh round) and 40 iterations, plans for
-#: ε̂ ≥ 0.999 encoding fear and, since the eighth round, ε̂ ≤ 0.00001 removing it (0.001 before), and a penalty
-#: (weight ``realism``) on the altered movement's distance from the subspace of the desired class's ``components``
-#: leading principal directions. Since the ninth round the last plan is emitted as planned (``emit="tail"``), under
-#: a terminal guard that predicts a human at rest to stay at rest (``guard_rest``). Since the thirteenth round the
-#: human is predicted as the mean of the 5 library movements nearest to its prefix (``neighbours``), and the plan
-#: asks for 5 mm of δ_pos = 20 (``terminal_margin``; 15 mm before). Since the fourteenth round encoding fear plans
-#: for ε̂ ≥ 0.99999 (``margin``; 0.999 before), as deep as removal.
+#: Principal directions of the desired class the shipped optimised blender's realism subspace keeps.
+COMPONENTS = 12
+
+#: The shipped optimised blender's settings: :class:`~cogblocks.amplification.OptimalBlender`'s own defaults (its
+#: docstring says what they are and why), and ``components`` of its realism subspace (:func:`optimised_subspace`).
+#: Derived from the class, so the two cannot disagree.
 OPTIMISED = {
-    "solver": "linearised",
-    "time_limit_ms": 4.0,
-    "solve_ticks": 6,
-    "iterations": 40,
-    "realism": 3000.0,
-    "margin": 0.09999,
-    "removal_margin": 0.09999,
-    "emit": "tail",
-    "guard_rest": True,
-    "neighbours": 5,
-    "terminal_margin": 15.0,
-    "components": 12,
+    **{
+        name: inspect.signature(OptimalBlender).parameters[name].default
+        for name in (
+            "solver",
+            "time_limit_ms",
+            "solve_ticks",
+            "iterations",
+            "realism",
+            "margin",
+            "removal_margin",
+            "emit",
+            "guard_rest",
+            "neighbours",
+            "terminal_margin",
+        )
+    },
+    "components": COMPONENTS,
 }
 
 #: Whether the optimised blender constrains the shipped encoder too, besides the blender ensemble
@@ -68,8 +70,8 @@ BLENDER_WITH_ENCODER = True
 
 #: How many networks of each shipped blender ensemble the optimised blender constrains: ``"profile"`` of
 #: ``encoder_ensemble.pt`` (60 profile inputs), ``"kinematic"`` of ``encoder_ensemble_kinematic.pt``
-#: (``mlp_kinematic``: the profile and the six kinematic features). Chosen on the inner split
-#: (docs/pop-amplification.md, "Fourth round"): the four kinematic networks join the two profile ones.
+#: (``mlp_kinematic``: the profile and the six kinematic features). On the inner split the four kinematic
+#: networks joining the two profile ones made the plans convince the judges more often (docs/pop-amplification.md).
 CONSTRAINED_MEMBERS = {"profile": 2, "kinematic": 4}
 
 
@@ -183,10 +185,10 @@ def amplification_setup(seed: int | None = None, e_des: int = 1) -> Amplificatio
 def optimised_subspace(movements: ReachLibrary, e_des: int) -> MovementSubspace:
     """The optimised blender's subspace: the PCA of ``movements`` of class ``e_des`` (:data:`OPTIMISED`).
 
-    A class with fewer movements than ``OPTIMISED["components"]`` keeps as many directions as it has movements.
+    A class with fewer movements than ``COMPONENTS`` keeps as many directions as it has movements.
     """
     count = int(np.sum(movements.fear == bool(e_des)))
-    return movement_subspace(movements, e_des, max(1, min(int(OPTIMISED["components"]), count)))
+    return movement_subspace(movements, e_des, max(1, min(COMPONENTS, count)))
 
 
 @lru_cache(maxsize=1)

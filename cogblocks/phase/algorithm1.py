@@ -221,7 +221,7 @@ class Algorithm1Phase(Block):
         self.add_state("coast", 0)  # ticks left of the hold-off after a drop-out
         self.add_state("gap_z", np.zeros((1, 2)))  # state of the filter's response to a drop-out (remove_transient)
         self.add_state("gap_z_run", np.zeros((1, 2)))  # that state when the current run of repeats began
-        self._pending: tuple | None = None
+        self.add_scratch("_pending", None)  # what output() decided, committed by update()
 
     def setup(self) -> None:
         self._m = 1 if self.accel_window == 0.0 else max(2, round(self.accel_window / self.dt))

@@ -124,9 +124,12 @@ class PhaseComputer(Block):
         self.add_state("full_distance", 0.0)
         self.add_state("last_p", np.full(3, np.nan))
         self.add_state("frozen", 0)  # ticks the position has been repeated exactly
-        self._next = (-1, 0, 0.0)
-        self._next_frozen = 0
-        self._centre_of, self._centre_value, self._spread = -1, np.zeros(3), 0.0  # a cache: it follows the inputs
+        self.add_scratch("_next", (-1, 0, 0.0))  # what output() decided, committed by update()
+        self.add_scratch("_next_frozen", 0)
+        # a cache of the reference's centre and spread, keyed by the reference's count input
+        self.add_scratch("_centre_of", -1)
+        self.add_scratch("_centre_value", np.zeros(3))
+        self.add_scratch("_spread", 0.0)
 
     def setup(self) -> None:
         shape = self.positions.spec.shape

@@ -63,7 +63,7 @@ class SpikeGate(Block):
         self.add_state("centre", 0.0)
         self.add_state("scale", 0.0)
         self.add_state("rejected", 0)  # consecutive spikes
-        self._next: tuple[int, float, float, int] | None = None
+        self.add_scratch("_next", None)  # what output() decided, committed by update()
 
     def setup(self) -> None:
         self._alpha = -math.expm1(-self.dt / self.memory)

@@ -55,7 +55,10 @@ class ScaledKalman(KalmanEstimator):
         super().setup()
         self._q0, self._r0 = self.process_noise, self.measurement_noise
         self._warm_ticks = max(2, math.ceil(self.warmup / self.dt))
-        self._applied = 1.0
+        # the noise in force is a cache of the declared `ratio`, re-applied by every output()
+        self.add_scratch("_applied", 1.0)
+        for name in ("process_noise", "measurement_noise", "_prior_var"):
+            self.add_scratch(name, getattr(self, name))
 
     def _apply(self, ratio: float) -> None:
         """Scale the filter's noise to ``ratio`` times the reference scale."""

@@ -207,7 +207,7 @@ class KalmanEstimator(Block):
         kf.Q = Q_continuous_white_noise(order, self.dt, self.process_noise, block_size=n)
         kf.H = np.kron(np.eye(n), np.eye(1, order))
         kf.R = self.measurement_noise**2 * np.eye(n)
-        self._kf = kf
+        self.add_scratch("_kf", kf)  # the filter's matrices; its x and P are loaded from the state every tick
         one_second = np.diag(Q_continuous_white_noise(order, 1.0, self.process_noise))
         self._prior_var = np.tile(np.concatenate([[self.measurement_noise**2], one_second[1:]]), n)
         self.gate_threshold = math.inf if self.gate is None else float(scipy.stats.chi2.ppf(self.gate, n))
@@ -220,12 +220,10 @@ class KalmanEstimator(Block):
         self.add_state("shadow_x", np.zeros(order * n))
         self.add_state("shadow_P", np.zeros((order * n, order * n)))
         # what output() decided, for update() to commit
-        self._z = np.zeros(n)
-        self._finite = False
-        self._valid = False
-        self._repeats_next = 0
-        self._rejections_next = 0
-        self._post: tuple[np.ndarray, np.ndarray] | None = None
+        self.add_scratch("_z", np.zeros(n))
+        for name, value in (("_finite", False), ("_valid", False), ("_repeats_next", 0), ("_rejections_next", 0)):
+            self.add_scratch(name, value)
+        self.add_scratch("_post", None)  # the tick's posterior, committed in update()
 
     def _transition(self, dt: float) -> np.ndarray:
         return np.kron(np.eye(self.n), axis_transition(self.order, dt))

@@ -1,6 +1,7 @@
 """The cogblocks engine: typed-port blocks, hierarchical diagrams, a fixed-step multirate scheduler."""
 
 from cogblocks.sim.block import Block
+from cogblocks.sim.check import StateCheck, UndeclaredStateError, check_block
 from cogblocks.sim.compiled import CompiledDiagram
 from cogblocks.sim.diagram import Diagram
 from cogblocks.sim.errors import DiagramError, SimulationError
@@ -24,6 +25,9 @@ __all__ = [
     "Signal",
     "SimulationError",
     "Simulator",
+    "StateCheck",
     "Trace",
+    "UndeclaredStateError",
     "Wire",
+    "check_block",
 ]

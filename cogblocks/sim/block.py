@@ -70,6 +70,7 @@ class Block:
         self._inputs: dict[str, Input] = {}
         self._outputs: dict[str, Output] = {}
         self._state_init: dict[str, Any] = {}
+        self._scratch: set[str] = set()
         self.name: str | None = None
         self._parent: Any = None  # the diagram the block was added to; set by Diagram.add
         self.period = period
@@ -84,7 +85,7 @@ class Block:
             )
         if not name.isidentifier():
             raise ValueError(f"port and state names must be Python identifiers, got {name!r}")
-        if name in self._inputs or name in self._outputs or name in self._state_init:
+        if name in self._inputs or name in self._outputs or name in self._state_init or name in self._scratch:
             raise ValueError(f"{type(self).__name__} already declares {name!r}")
         if name in self.__dict__ or hasattr(type(self), name):
             raise ValueError(f"{type(self).__name__}: {name!r} would shadow an attribute of the block")
@@ -183,6 +184,22 @@ class Block:
         self._state_init[name] = _snapshot(value)
         object.__setattr__(self, name, value)
 
+    def add_scratch(self, name: str, value: Any) -> None:
+        """Declare a work attribute, set ``self.<name> = value``: not state, so never snapshotted.
+
+        For what a tick computes and uses within the same tick (a value :meth:`output` computes
+        and :meth:`update` commits, a buffer a filter writes into), caches of the state or the
+        inputs, and records kept for inspection that the outputs never depend on: a restored
+        snapshot must continue bit for bit without it, which :func:`cogblocks.sim.check_block`
+        checks. An attribute already set (a parameter a cache overwrites) may be declared too.
+        May be called again in :meth:`setup`.
+        """
+        if name not in self._scratch:
+            if name not in self.__dict__ or name in self._inputs or name in self._outputs or name in self._state_init:
+                self._check_init(name)
+            self._scratch.add(name)
+        object.__setattr__(self, name, value)
+
     # -- introspection -------------------------------------------------------
     @property
     def inputs(self) -> Mapping[str, Input]:
@@ -203,6 +220,11 @@ class Block:
     def state_names(self) -> tuple[str, ...]:
         """Names of the declared state."""
         return tuple(self._state_init)
+
+    @property
+    def scratch_names(self) -> tuple[str, ...]:
+        """Names of the declared work attributes (see :meth:`add_scratch`)."""
+        return tuple(sorted(self._scratch))
 
     @property
     def stateful(self) -> bool:

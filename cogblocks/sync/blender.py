@@ -100,7 +100,6 @@ class Blender(Block):
         self.add_output("theta_l2", PHASE)
         self.add_output("lam", Signal(unit="rad"), initial=self.lam_max)
         self.add_state("lam_now", self.lam_max)
-        self.lam_next = self.lam_max  # scratch: λ of the next tick, computed in output(), committed in update()
 
     def setup(self) -> None:
         # the λ dynamics must be stable for this step, both along the linear pieces and at the
@@ -109,7 +108,6 @@ class Blender(Block):
             check_blender(self, self.dt)
         except ValueError as exc:
             raise self._fail(str(exc).removeprefix("Blender: ")) from None
-        self.lam_next = self.lam_now
 
     def saturate(self, x: float, lam: float) -> float:
         """``sat_λ(x)``: hard clip to [−λ, λ], or its smooth version."""
@@ -133,18 +131,20 @@ class Blender(Block):
     def output(self, k: int) -> None:
         theta_l0 = float(self.theta_l0.value)
         if not math.isfinite(theta_l0):
-            self.lam_next = self.lam_now
             return
         lam = self.lam_now
         theta_ref = float(self.theta_ref.value)
         shift = self.saturate(_wrap_pi(theta_ref - theta_l0), lam) if math.isfinite(theta_ref) else 0.0
-        theta_l2 = wrap_angle(theta_l0 + shift)
-        self.theta_l2.value[...] = theta_l2
+        self.theta_l2.value[...] = wrap_angle(theta_l0 + shift)
         self.lam.value[...] = lam
-        # eq. (6), forward Euler, with e from this tick's θ_L2 and θ_L0
-        target = self.lam_inf(_wrap_pi(theta_l2 - theta_l0))
-        kappa = self.kappa_plus if lam <= target else self.kappa_minus
-        self.lam_next = lam - self.dt * kappa * (lam - target)
 
     def update(self, k: int) -> None:
-        self.lam_now = self.lam_next
+        # eq. (6), forward Euler, with e from this tick's θ_L2 (the output just written) and θ_L0; computed
+        # here rather than kept from output() so that λ_now is the block's whole state between ticks
+        theta_l0 = float(self.theta_l0.value)
+        if not math.isfinite(theta_l0):
+            return  # λ holds on a missing sample, as θ_L2 does
+        lam = self.lam_now
+        target = self.lam_inf(_wrap_pi(float(self.theta_l2.value) - theta_l0))
+        kappa = self.kappa_plus if lam <= target else self.kappa_minus
+        self.lam_now = lam - self.dt * kappa * (lam - target)

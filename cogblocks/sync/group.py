@@ -85,6 +85,7 @@ class KuramotoGroup(Block):
         self.gain = finite_number(self, "gain", gain, low=0.0)
         if sparse is not None and not isinstance(sparse, (bool, np.bool_)):
             raise ValueError(f"KuramotoGroup: sparse must be True, False or None, got {sparse!r}")
+        self.add_scratch("coupling", None)  # the graph and its work buffer
         self.coupling = Coupling(checked_graph(self, adjacency, n), n, sparse=sparse)
         self.adjacency = self.coupling.matrix
         if assisted is not None and (
@@ -103,8 +104,8 @@ class KuramotoGroup(Block):
             self.add_input("theta_l2", PHASE, feedthrough=False)
         self.add_output("theta", PHASE.with_(shape=(n,)), initial=np.mod(theta0, TWO_PI))
         self.add_state("phase", np.mod(theta0, TWO_PI).astype(float))
-        self._seen = np.zeros(n)
-        self._rate = np.zeros(n)
+        self.add_scratch("_seen", np.zeros(n))  # the phases and pulls of this tick, work buffers
+        self.add_scratch("_rate", np.zeros(n))
 
     def output(self, k: int) -> None:
         self.theta.value[...] = self.phase

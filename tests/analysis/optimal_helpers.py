@@ -6,8 +6,9 @@ imports a test module of this folder.
 
 import numpy as np
 
+from cogblocks.amplification import OptimalBlender
 from cogblocks.diagrams.amplification_setup import OPTIMISED
-from cogblocks.experiments.amplification_gap import RecordingBlender
+from studies.amplification_gap import RecordingBlender
 
 
 def options(**extra):
@@ -76,7 +77,7 @@ def random_dual(rng, sizes, extra_columns, finite):
 
 
 class PredictionRecorder(RecordingBlender):
-    """A :class:`~cogblocks.experiments.amplification_gap.RecordingBlender` that also keeps, in ``predictions``, every
+    """A :class:`~studies.amplification_gap.RecordingBlender` that also keeps, in ``predictions``, every
     decision's tick and the prediction its problem and check were made on."""
 
     def reset(self) -> None:
@@ -86,3 +87,26 @@ class PredictionRecorder(RecordingBlender):
     def _finish(self, t, new):
         self.predictions.append((self._job["t"], self._job["predicted"].copy()))
         return super()._finish(t, new)
+
+
+#: The casadi setting the solver tests exercise, where they leave an option out: the SQP solver, one tick and 10
+#: iterations per decision, ``v_h + u`` emitted, η_i predicted. :class:`~cogblocks.amplification.OptimalBlender`'s
+#: own defaults are the shipped setting (:data:`~cogblocks.diagrams.amplification_setup.OPTIMISED`).
+PLAIN = {
+    "solver": "sqpmethod",
+    "time_limit_ms": 8.0,
+    "solve_ticks": 1,
+    "iterations": 10,
+    "realism": 30.0,
+    "margin": 0.05,
+    "removal_margin": None,
+    "emit": "human",
+    "guard_rest": False,
+    "neighbours": 1,
+    "terminal_margin": 5.0,
+}
+
+
+def plain_blender(*args, **kwargs):
+    """An :class:`~cogblocks.amplification.OptimalBlender` with :data:`PLAIN` for the options not given."""
+    return OptimalBlender(*args, **{**PLAIN, **kwargs})

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.amplification import EncoderNet, NoCorrection, OptimalBlender
+from cogblocks.amplification import EncoderNet, NoCorrection
 from cogblocks.amplification.encoder import clip_decision, movement_length
 from cogblocks.amplification.encoder_casadi import encoder_to_casadi, ensemble_logits
 from cogblocks.amplification.judges import (
@@ -23,6 +23,7 @@ from cogblocks.diagrams.amplification import amplification_judges, amplification
 from cogblocks.sim import Simulator
 from cogblocks.training.judges import train_judges
 from cogblocks.training.recipe import TrainingRecipe
+from tests.analysis.optimal_helpers import plain_blender
 
 torch.set_num_threads(1)
 
@@ -103,7 +104,7 @@ def test_optimal_blender_meets_every_member(setup):
     assert len(networks) >= 2
     human = int(setup.humans[0])
     lib = setup.library
-    blender = OptimalBlender(setup.movements, networks, setup.table)
+    blender = plain_blender(setup.movements, networks, setup.table)
     d = pop_amplification(
         (lib.velocity[human], lib.position[human]), setup.movements, table=setup.table, encoder=setup.encoder,
         corrector=NoCorrection(), blending=blender,
@@ -120,9 +121,9 @@ def test_optimal_blender_meets_every_member(setup):
 
 def test_optimal_blender_rejects_a_bad_ensemble(setup):
     with pytest.raises(ValueError, match="non-empty list of them, got 0 items"):
-        OptimalBlender(setup.movements, [], setup.table)
+        plain_blender(setup.movements, [], setup.table)
     with pytest.raises(ValueError, match="got 2 items of types EncoderNet, str"):
-        OptimalBlender(setup.movements, [setup.encoder, "net"], setup.table)
+        plain_blender(setup.movements, [setup.encoder, "net"], setup.table)
 
 
 def test_encoder_ensemble_is_the_mean():

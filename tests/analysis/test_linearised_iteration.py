@@ -12,12 +12,11 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.kinematics import plan_features
 from cogblocks.amplification.linearised import LinearisedSolver, box_qp, network_input
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
-from tests.analysis.optimal_helpers import random_dual
+from tests.analysis.optimal_helpers import plain_blender, random_dual
 
 torch.set_num_threads(1)
 ITERATIONS = 12
@@ -28,7 +27,7 @@ def captured():
     """The first decisions' problems of the shipped setting (seven networks, kinematic inputs) on a movement."""
     setup = amplification_setup(None, 1)
     settings = {k: v for k, v in OPTIMISED.items() if k != "components"}
-    blender = OptimalBlender(setup.movements, blender_networks(setup.encoder), setup.table, e_des=1,
+    blender = plain_blender(setup.movements, blender_networks(setup.encoder), setup.table, e_des=1,
                              subspace=setup.subspace, **settings)  # fmt: skip
     problems, start = [], LinearisedSolver.start
 

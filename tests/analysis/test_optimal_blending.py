@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.amplification import OptimalBlender, VelocityBlender
+from cogblocks.amplification import VelocityBlender
 from cogblocks.amplification.encoder_casadi import encoder_to_casadi, input_map
 from cogblocks.cli import main
 from cogblocks.data.features import resample_movement
 from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, pop_amplification, run_amplification
 from cogblocks.sim import Simulator
+from tests.analysis.optimal_helpers import plain_blender
 
 torch.set_num_threads(1)
 FIRST_DECISION = 10  # ΔT: the projector's first decision shows from this tick on
@@ -62,7 +63,7 @@ def test_input_map_equals_resample_movement(length):
 
 def test_same_ports_as_velocity_blender(setup):
     table_based = VelocityBlender(setup.table)
-    optimal = OptimalBlender(setup.movements, setup.encoder, setup.table)
+    optimal = plain_blender(setup.movements, setup.encoder, setup.table)
     assert {n: p.declared for n, p in optimal.inputs.items()} == {n: p.declared for n, p in table_based.inputs.items()}
     assert {n: p.spec for n, p in optimal.outputs.items()} == {n: p.spec for n, p in table_based.outputs.items()}
 
@@ -70,7 +71,7 @@ def test_same_ports_as_velocity_blender(setup):
 @pytest.mark.parametrize("position", [0, 3])
 def test_plan_meets_both_constraints(setup, position):
     human = setup.humans[position]
-    blender = OptimalBlender(setup.movements, setup.encoder, setup.table, time_limit_ms=1000.0)
+    blender = plain_blender(setup.movements, setup.encoder, setup.table, time_limit_ms=1000.0)
     _, trace = replay(setup, human, blender)
     # pass-through before the first decision
     np.testing.assert_array_equal(trace["v_a"][:FIRST_DECISION], trace["v_h"][:FIRST_DECISION])
@@ -89,7 +90,7 @@ def test_plan_meets_both_constraints(setup, position):
 def test_fallback_to_the_table_when_out_of_time(setup):
     # for this movement no warm start passes the acceptance check: no plan is ever made
     human = setup.humans[0]
-    blender = OptimalBlender(setup.movements, setup.encoder, setup.table, time_limit_ms=1e-6)
+    blender = plain_blender(setup.movements, setup.encoder, setup.table, time_limit_ms=1e-6)
     _, trace = replay(setup, human, blender)
     statuses = [r.status for r in blender.results]
     assert "converged" not in statuses
@@ -102,7 +103,7 @@ def test_fallback_to_the_table_when_out_of_time(setup):
 
 def test_fallback_keeps_the_previous_plan(setup, monkeypatch):
     human = setup.humans[3]
-    d, _ = replay(setup, human, OptimalBlender(setup.movements, setup.encoder, setup.table, time_limit_ms=1000.0))
+    d, _ = replay(setup, human, plain_blender(setup.movements, setup.encoder, setup.table, time_limit_ms=1000.0))
     sim = Simulator(d)
     ticks = 35  # three plans made
     sim.run(n_steps=ticks)
@@ -110,7 +111,7 @@ def test_fallback_keeps_the_previous_plan(setup, monkeypatch):
     plan, end = block.plan.copy(), block.end
     assert end > ticks and block.fallbacks == 0
     no_plan = lambda blender, problem, guess: (None, np.zeros(4), "fallback")  # noqa: E731
-    monkeypatch.setattr("cogblocks.amplification.optimal.solve_decision", no_plan)  # no solve converges from now on
+    monkeypatch.setattr("cogblocks.amplification.decision.solve_decision", no_plan)  # no solve converges from now on
     tail = sim.run(n_steps=setup.library.max_len - ticks)
     later = [r for r in block.results if r.tick >= ticks]
     assert block.fallbacks == sum(r.status == "fallback" for r in later) > 0
@@ -125,9 +126,9 @@ def test_fallback_keeps_the_previous_plan(setup, monkeypatch):
 def test_swappable_with_replace(setup):
     human = setup.humans[3]
     options = dict(time_limit_ms=1000.0)
-    _, direct = replay(setup, human, OptimalBlender(setup.movements, setup.encoder, setup.table, **options))
+    _, direct = replay(setup, human, plain_blender(setup.movements, setup.encoder, setup.table, **options))
     d, _ = replay(setup, human)
-    old = d.replace("l2.blender", OptimalBlender(setup.movements, setup.encoder, setup.table, **options))
+    old = d.replace("l2.blender", plain_blender(setup.movements, setup.encoder, setup.table, **options))
     assert isinstance(old, VelocityBlender)
     swapped = Simulator(d).run(n_steps=setup.library.max_len)
     np.testing.assert_allclose(swapped["v_a"], direct["v_a"], rtol=0, atol=1e-9)

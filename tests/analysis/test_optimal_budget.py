@@ -4,11 +4,10 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.linearised import LinearisedRun, LinearisedSolver
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import blender_networks
-from tests.analysis.optimal_helpers import options
+from tests.analysis.optimal_helpers import options, plain_blender
 
 torch.set_num_threads(1)
 
@@ -46,7 +45,7 @@ def test_block_gradients_plan_as_the_stacked_ones():
     settings = options()
     results = {}
     for gradient in ("stacked", "blocks"):
-        blender = OptimalBlender(
+        blender = plain_blender(
             setup.movements, networks, setup.table, e_des=1, subspace=setup.subspace, gradient=gradient, **settings
         )
         replay_movement(setup, int(setup.humans[0]), blender)
@@ -96,6 +95,6 @@ def test_the_prediction_leaves_out_the_preparation_when_asked(monkeypatch, predi
 def test_bad_values_are_refused_by_name(options, message):
     setup = amplification_setup(None, 1)
     with pytest.raises(ValueError, match=f"OptimalBlender: {message}"):
-        OptimalBlender(setup.movements, setup.encoder, setup.table, solver="linearised", **options)
+        plain_blender(setup.movements, setup.encoder, setup.table, solver="linearised", **options)
     with pytest.raises(ValueError, match=message):
         random_solver(np.random.default_rng(0), **options)

@@ -5,13 +5,12 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.emission import final_gap, guard_settings, guarded_velocity, rebased
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import blender_networks
-from cogblocks.experiments.amplification_gap import RecordingBlender, planned_vs_emitted, summarise
-from cogblocks.experiments.amplification_inner import inner_setup
-from tests.analysis.optimal_helpers import eta_i_options
+from studies.amplification_gap import RecordingBlender, planned_vs_emitted, summarise
+from studies.amplification_inner import inner_setup
+from tests.analysis.optimal_helpers import eta_i_options, plain_blender
 
 torch.set_num_threads(1)
 DT = 0.01
@@ -116,7 +115,7 @@ def test_option_off_is_the_old_emission():
     setup = amplification_setup(None, 1)
     networks = blender_networks(setup.encoder, profile=2, kinematic=0)
     settings = eta_i_options(iterations=10, emit="human")
-    blender = OptimalBlender(setup.movements, networks, setup.table, subspace=setup.subspace, **settings)
+    blender = plain_blender(setup.movements, networks, setup.table, subspace=setup.subspace, **settings)
     assert "basis" not in blender.state_dict() and blender.emit == "human"
     trace = replay(setup, blender, int(setup.humans[0]))
     # after the last commit the plan's correction is added to the measured human, nothing else
@@ -126,7 +125,7 @@ def test_option_off_is_the_old_emission():
     )
     assert not blender.guarded_ticks
     with pytest.raises(ValueError, match="emit"):
-        OptimalBlender(setup.movements, networks, emit="predicted")
+        plain_blender(setup.movements, networks, emit="predicted")
 
 
 def test_planned_vs_emitted_replay():
@@ -228,7 +227,7 @@ def removal_setup():
 
 def guard_replay(setup, **extra):
     """The first removal human replayed through the optimised blender with ``extra`` options."""
-    blender = OptimalBlender(setup.movements, blender_networks(setup.encoder), setup.table, e_des=0,
+    blender = plain_blender(setup.movements, blender_networks(setup.encoder), setup.table, e_des=0,
                              subspace=setup.subspace, **eta_i_options(**extra))  # fmt: skip
     return blender, replay_movement(setup, int(setup.humans[0]), blender)
 

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.encoder import EncoderNet, resampling_matrix
 from cogblocks.amplification.judges import (
     BLENDER_ENSEMBLE,
@@ -22,6 +21,7 @@ from cogblocks.amplification.members import kinematic_member
 from cogblocks.amplification.plan import plan_problem
 from cogblocks.diagrams.amplification import amplification_setup
 from cogblocks.diagrams.amplification_setup import CONSTRAINED_MEMBERS, blender_ensembles, blender_networks
+from tests.analysis.optimal_helpers import plain_blender
 
 torch.set_num_threads(1)
 DT = 0.01
@@ -90,7 +90,7 @@ def test_profile_only_problems_keep_their_input_map(setup):
 
 def test_member_eps_is_the_ensemble_prediction(setup, kinematic):
     networks = [copy.deepcopy(n).double() for n in kinematic]  # double precision on both sides
-    blender = OptimalBlender(setup.movements, networks, solver="linearised")
+    blender = plain_blender(setup.movements, networks, solver="linearised")
     ensemble = EncoderEnsemble(networks)
     assert ensemble.architecture == "mlp_kinematic"
     lib = setup.library
@@ -103,11 +103,11 @@ def test_member_eps_is_the_ensemble_prediction(setup, kinematic):
 
 
 def test_mixed_members_weigh_what_each_takes(setup, kinematic):
-    blender = OptimalBlender(setup.movements, [setup.encoder, kinematic[0]], solver="linearised")
+    blender = plain_blender(setup.movements, [setup.encoder, kinematic[0]], solver="linearised")
     v = setup.library.velocity[int(setup.val[0])]
     eps = blender.member_eps(v)
     alone = [
-        OptimalBlender(setup.movements, n, solver="linearised").member_eps(v)[0] for n in (setup.encoder, kinematic[0])
+        plain_blender(setup.movements, n, solver="linearised").member_eps(v)[0] for n in (setup.encoder, kinematic[0])
     ]
     np.testing.assert_allclose(eps, alone, rtol=1e-12)
 
@@ -123,7 +123,7 @@ def kinematic_eps(network: EncoderNet, velocity: np.ndarray, padded: int) -> flo
 def test_solver_meets_the_kinematic_member(e_des, kinematic):
     setup = amplification_setup(None, e_des)
     member = kinematic[0]
-    blender = OptimalBlender(setup.movements, [setup.encoder, member], setup.table, e_des=e_des,
+    blender = plain_blender(setup.movements, [setup.encoder, member], setup.table, e_des=e_des,
                              subspace=setup.subspace, solver="linearised")  # fmt: skip
     lib, t = setup.library, 10
     rhs = [blender._sign, blender._z_target, blender.end_speed, blender._delta]
@@ -153,13 +153,13 @@ def test_solver_meets_the_kinematic_member(e_des, kinematic):
 
 def test_bad_members(setup, kinematic):
     with pytest.raises(ValueError, match="networks with kinematic inputs need solver='linearised'"):
-        OptimalBlender(setup.movements, [setup.encoder, kinematic[0]])
+        plain_blender(setup.movements, [setup.encoder, kinematic[0]])
     with pytest.raises(ValueError, match="got 50 inputs"):
         kinematic_member(EncoderNet(n_inputs=50, hidden=2))
     shape = EncoderNet(n_inputs=66, hidden=2)
     shape.checkpoint = {"architecture": "mlp_shape_kinematic"}
     with pytest.raises(ValueError, match="architecture 'mlp_shape_kinematic'"):
-        OptimalBlender(setup.movements, [setup.encoder, shape], solver="linearised")
+        plain_blender(setup.movements, [setup.encoder, shape], solver="linearised")
     assert kinematic_member(kinematic[0]) and not kinematic_member(setup.encoder)
 
 

@@ -1,5 +1,5 @@
 """The thirteenth round's option of the optimised blender: the human predicted as the mean of several library
-movements (``OptimalBlender(neighbours=k)``, :mod:`cogblocks.amplification.neighbours`)."""
+movements (``plain_blender(neighbours=k)``, :mod:`cogblocks.amplification.neighbours`)."""
 
 from types import SimpleNamespace
 
@@ -7,12 +7,11 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.neighbours import NeighbourPrediction
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import blender_networks
-from tests.analysis.optimal_helpers import PredictionRecorder, options
+from tests.analysis.optimal_helpers import PredictionRecorder, options, plain_blender
 
 torch.set_num_threads(1)
 
@@ -47,9 +46,9 @@ def test_one_neighbour_is_eta_and_keeps_no_state():
     prediction.record(block, 5)  # nothing to keep: no neighbour_sums needed
     np.testing.assert_array_equal(prediction.basis(block, 4), library.velocity[4])
     setup = amplification_setup(None, 0)
-    blender = OptimalBlender(setup.movements, setup.encoder, solver="linearised")
+    blender = plain_blender(setup.movements, setup.encoder, solver="linearised")
     assert blender.neighbours == 1 and "neighbour_sums" not in blender.state_names
-    blender = OptimalBlender(setup.movements, setup.encoder, solver="linearised", neighbours=4)
+    blender = plain_blender(setup.movements, setup.encoder, solver="linearised", neighbours=4)
     assert blender.neighbours == 4 and "neighbour_sums" in blender.state_names
     assert blender.state_dict()["state"]["neighbour_sums"].shape == (len(setup.movements),)
 
@@ -58,11 +57,11 @@ def test_bad_neighbours():
     setup = amplification_setup(None, 1)
     n = len(setup.movements)
     with pytest.raises(ValueError, match=f"OptimalBlender: neighbours must be at most the library's {n} movements"):
-        OptimalBlender(setup.movements, setup.encoder, solver="linearised", neighbours=n + 1)
+        plain_blender(setup.movements, setup.encoder, solver="linearised", neighbours=n + 1)
     with pytest.raises(ValueError, match="neighbours"):
-        OptimalBlender(setup.movements, setup.encoder, solver="linearised", neighbours=0)
+        plain_blender(setup.movements, setup.encoder, solver="linearised", neighbours=0)
     with pytest.raises(ValueError, match="neighbours"):
-        OptimalBlender(setup.movements, setup.encoder, solver="linearised", neighbours=2.5)
+        plain_blender(setup.movements, setup.encoder, solver="linearised", neighbours=2.5)
 
 
 @pytest.mark.parametrize("e_des", [1, 0])

@@ -6,14 +6,15 @@ import numpy as np
 import pytest
 import torch
 
+import cogblocks.amplification.decision as decision
 import cogblocks.amplification.optimal as optimal
 from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.linearised import LinearisedRun
 from cogblocks.amplification.plan import plan_problem, with_past
 from cogblocks.diagrams.amplification import replay_movement
-from cogblocks.experiments.amplification_gap import planned_vs_emitted, summarise
-from cogblocks.experiments.amplification_inner import inner_setup
-from tests.analysis.optimal_helpers import options
+from studies.amplification_gap import planned_vs_emitted, summarise
+from studies.amplification_inner import inner_setup
+from tests.analysis.optimal_helpers import options, plain_blender
 
 torch.set_num_threads(1)
 
@@ -91,7 +92,7 @@ def test_off_never_touches_the_problem(setup, networks, monkeypatch):
     def forbidden(*args, **kwargs):
         raise AssertionError("the option is off")
 
-    monkeypatch.setattr(optimal, "follow_past", forbidden)
+    monkeypatch.setattr(decision, "follow_past", forbidden)
     monkeypatch.setattr(LinearisedRun, "update", forbidden)
     blender = CommitRecorder(
         setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace, **options()
@@ -101,11 +102,11 @@ def test_off_never_touches_the_problem(setup, networks, monkeypatch):
     # off, the committed problem is the one built at the decision, on the predicted past
     assert any(not np.allclose(got["x0"], scratch["x0"]) for got, scratch in blender.pairs)
     with pytest.raises(ValueError, match="track_past needs solver='linearised'"):
-        OptimalBlender(setup.movements, networks[:1], setup.table, e_des=setup.e_des, track_past=True)
+        plain_blender(setup.movements, networks[:1], setup.table, e_des=setup.e_des, track_past=True)
 
 
 def test_update_rejudges_the_kept_plan(setup, networks):
-    blender = OptimalBlender(setup.movements, networks, setup.table, e_des=setup.e_des, **options())
+    blender = plain_blender(setup.movements, networks, setup.table, e_des=setup.e_des, **options())
     human, n, t = int(setup.humans[0]), setup.library.max_len, 10
     length = min(int(setup.library.length[human]) + 10, n)
     velocity = setup.library.velocity[human]
@@ -141,18 +142,19 @@ def test_the_refresh_is_inside_the_tick_budget(setup, networks, monkeypatch):
         clock.now += 1e-3
         return clock.now
 
-    real = optimal.follow_past
+    real = decision.follow_past
 
     def costly(blender, job, t):
         real(blender, job, t)
         clock.now += 2e-3  # two readings' worth, as an iteration (an odd count would shift the readings' parity)
 
     monkeypatch.setattr(optimal, "time", types.SimpleNamespace(thread_time=read))
-    monkeypatch.setattr(optimal, "follow_past", costly)
+    monkeypatch.setattr(decision, "time", types.SimpleNamespace(thread_time=read))
+    monkeypatch.setattr(decision, "follow_past", costly)
     monkeypatch.setattr(LinearisedRun.run, "__kwdefaults__", {"at_least_one": False, "clock": read})
     ticks = {}
     for track in (False, True):
-        blender = OptimalBlender(
+        blender = plain_blender(
             setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace,
             **options(track_past=track, time_limit_ms=6.0),
         )  # fmt: skip

@@ -5,7 +5,6 @@ import pytest
 import torch
 from scipy.optimize import minimize
 
-from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.encoder import movement_length
 from cogblocks.amplification.judges import BLENDER_ENSEMBLE, load_ensemble
 from cogblocks.amplification.linearised import box_qp
@@ -14,7 +13,7 @@ from cogblocks.amplification.subspace import load_subspace, movement_subspace
 from cogblocks.data.features import classifier_inputs, resample_movement
 from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED
-from tests.analysis.optimal_helpers import random_dual
+from tests.analysis.optimal_helpers import plain_blender, random_dual
 
 torch.set_num_threads(1)
 
@@ -71,7 +70,7 @@ def test_subspace_bad_input(setup, tmp_path):
     with pytest.raises(ValueError, match="bad.npz: not a MovementSubspace file .missing components, e_des, explained"):
         load_subspace(tmp_path / "bad.npz")
     with pytest.raises(ValueError, match="subspace must be a MovementSubspace of 60 inputs for e_des=0"):
-        OptimalBlender(setup.movements, setup.encoder, e_des=0, subspace=movement_subspace(setup.movements, 1))
+        plain_blender(setup.movements, setup.encoder, e_des=0, subspace=movement_subspace(setup.movements, 1))
 
 
 @pytest.mark.parametrize("seed", range(40))
@@ -89,7 +88,7 @@ def test_box_qp_is_the_minimiser(seed):
 
 
 def test_linearised_logits_are_the_networks(setup, networks):
-    blender = OptimalBlender(setup.movements, networks, solver="linearised")
+    blender = plain_blender(setup.movements, networks, solver="linearised")
     solver = blender._linear
     x = setup.encoder.mean.double().numpy() + np.random.default_rng(2).normal(size=60) * 200.0
     z, grad = solver.logits(x)
@@ -110,7 +109,7 @@ def test_realistic_plan_meets_every_member(e_des, networks):
     setup = amplification_setup(None, e_des)
     options = {**OPTIMISED, "time_limit_ms": 1000.0}
     options.pop("components")
-    blender = OptimalBlender(setup.movements, networks, setup.table, e_des=e_des, subspace=setup.subspace, **options)
+    blender = plain_blender(setup.movements, networks, setup.table, e_des=e_des, subspace=setup.subspace, **options)
     human = int(setup.humans[1])
     trace = replay(setup, blender, human)
     altered = trace["v_a"]
@@ -120,14 +119,14 @@ def test_realistic_plan_meets_every_member(e_des, networks):
     assert np.linalg.norm(trace["p_a"][-1] - trace["p_h"][-1]) <= DELTA_POS_MM
     assert blender.fallbacks == 0 and "fallback" not in {r.status for r in blender.results}
     # the penalty keeps the altered movement nearer realistic movements of the class than the bare plan
-    bare = OptimalBlender(setup.movements, networks, setup.table, e_des=e_des, solver="linearised", time_limit_ms=1e3)
+    bare = plain_blender(setup.movements, networks, setup.table, e_des=e_des, solver="linearised", time_limit_ms=1e3)
     bare_altered = replay(setup, bare, human)["v_a"]
     bare_inputs = resample_movement(bare_altered, movement_length(bare_altered, 1.0))
     assert setup.subspace.residual(inputs) < setup.subspace.residual(bare_inputs)
 
 
 def test_out_of_time_falls_back_to_the_table(setup, networks):
-    blender = OptimalBlender(
+    blender = plain_blender(
         setup.movements, networks, setup.table, subspace=setup.subspace, solver="linearised", time_limit_ms=1e-6
     )
     human = int(setup.humans[0])
@@ -154,7 +153,7 @@ class TickClock:
 
 def first_problem(setup, networks):
     """A blender and the problem of a decision at tick 10 of a held-out movement (its own future as the prediction)."""
-    blender = OptimalBlender(setup.movements, networks, setup.table, subspace=setup.subspace, solver="linearised")
+    blender = plain_blender(setup.movements, networks, setup.table, subspace=setup.subspace, solver="linearised")
     lib, human, t = setup.library, int(setup.humans[0]), 10
     past = np.zeros((lib.max_len, 3))
     past[:t] = lib.velocity[human, :t]
@@ -201,7 +200,7 @@ def test_no_iteration_starts_past_the_budget(setup, networks):
 
 @pytest.mark.parametrize("ticks", [1, 4])
 def test_solve_ticks_plans_from_the_last_tick(setup, networks, ticks):
-    blender = OptimalBlender(
+    blender = plain_blender(
         setup.movements, networks, setup.table, subspace=setup.subspace, solver="linearised",
         time_limit_ms=1e3, solve_ticks=ticks, iterations=30,
     )  # fmt: skip
@@ -216,7 +215,7 @@ def test_solve_ticks_plans_from_the_last_tick(setup, networks, ticks):
     assert sum(min(r.ticks, 2) for r in solved) <= len(blender.tick_ms) <= sum(r.ticks for r in solved)
     np.testing.assert_allclose(blender.solve_ms, [r.solve_ms for r in solved])
     with pytest.raises(ValueError, match="solve_ticks > 1 needs solver='linearised'"):
-        OptimalBlender(setup.movements, networks, setup.table, solve_ticks=2)
+        plain_blender(setup.movements, networks, setup.table, solve_ticks=2)
 
 
 def test_ticks_run_blas_on_one_thread(setup, networks):
@@ -227,7 +226,7 @@ def test_ticks_run_blas_on_one_thread(setup, networks):
     def blas_threads() -> set[int]:
         return {info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"}
 
-    blender = OptimalBlender(setup.movements, networks, setup.table, solver="linearised", solve_ticks=2)
+    blender = plain_blender(setup.movements, networks, setup.table, solver="linearised", solve_ticks=2)
     seen, work = [], blender._work
     blender._work = lambda t, started: (seen.append(blas_threads()), work(t, started))[1]
     with threadpool_limits(limits=2, user_api="blas"):

@@ -8,12 +8,11 @@ import numpy as np
 import pytest
 import torch
 
-from cogblocks.amplification import OptimalBlender
 from cogblocks.amplification.plan import library_prediction
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import blender_networks
-from cogblocks.experiments.amplification_gap import RecordingBlender
-from tests.analysis.optimal_helpers import PredictionRecorder, eta_i_options
+from studies.amplification_gap import RecordingBlender
+from tests.analysis.optimal_helpers import PredictionRecorder, eta_i_options, plain_blender
 
 torch.set_num_threads(1)
 
@@ -113,16 +112,16 @@ def test_decisions_plan_on_the_library_prediction(setup, networks):
 
 
 def test_removal_margin_sets_the_removal_target_only(setup, networks):
-    blender = OptimalBlender(setup.movements, networks, setup.table, e_des=setup.e_des, removal_margin=0.09999,
+    blender = plain_blender(setup.movements, networks, setup.table, e_des=setup.e_des, removal_margin=0.09999,
                              **{k: v for k, v in eta_i_options().items() if "margin" not in k})  # fmt: skip
     margin = 0.09999 if setup.e_des == 0 else 0.05  # encoding fear keeps ``margin`` (its default here)
     assert blender._z_target == pytest.approx(math.log((0.9 + margin) / (0.1 - margin)))
     others = {"e_des": setup.e_des, "solver": "linearised"}
-    assert OptimalBlender(setup.movements, networks, margin=0.02, **others).removal_margin == 0.02
+    assert plain_blender(setup.movements, networks, margin=0.02, **others).removal_margin == 0.02
     with pytest.raises(ValueError, match="removal_margin"):
-        OptimalBlender(setup.movements, networks, removal_margin=0.1, **others)
+        plain_blender(setup.movements, networks, removal_margin=0.1, **others)
     with pytest.raises(ValueError, match="emit"):
-        OptimalBlender(setup.movements, networks, emit="last", **others)
+        plain_blender(setup.movements, networks, emit="last", **others)
 
 
 def test_removal_plans_meet_the_removal_margin():

@@ -1267,6 +1267,15 @@ def register_amplification() -> None:
 
     from cogblocks.amplification import L2Amplification, OptimalBlender
 
+    # the casadi setting with one tick per decision (the class's defaults are the shipped linearised one)
+    PLAIN = {
+        k: st.just(v)
+        for k, v in dict(
+            solver="sqpmethod", solve_ticks=1, iterations=10, realism=30.0, margin=0.05, removal_margin=None,
+            emit="human", guard_rest=False, neighbours=1, terminal_margin=5.0,
+        ).items()
+    }  # fmt: skip
+
     @st.composite
     def l2_amplification(draw):
         capacity = draw(st.integers(10, 60))
@@ -1290,7 +1299,9 @@ def register_amplification() -> None:
     )
     register(
         OptimalBlender,
-        st.builds(OptimalBlender, st.just(library), st.just(network), st.just(table), time_limit_ms=st.just(50.0)),
+        st.builds(
+            OptimalBlender, st.just(library), st.just(network), st.just(table), time_limit_ms=st.just(50.0), **PLAIN
+        ),
         blending_feeds,
         ["v_h", "v_r", "v_u"],
         # "a non-finite v_h or v_u gives a non-finite v_a on that tick (v_r only counts while the table's c < 1 is in
