@@ -1,6 +1,6 @@
 """The cost of the whole-run upper bound that every sync policy is judged against.
 
-* ``bound.<group>.cpu_s``: CPU seconds of :func:`~cogblocks.analysis.sync_bound.upper_bound` as the held-out
+* ``bound.<group>.cpu_s``: CPU seconds of :func:`~cogblocks.evaluation.sync_bound.upper_bound` as the held-out
   evaluation calls it (``pace=False``: the windowed optimal control and the constant-frequency scan);
   reference: the CPU seconds of one closed-loop simulation of the same group without L2, measured in the
   same run, so ``ratio`` is the bound's cost in plain simulations.
@@ -16,9 +16,9 @@ import dataclasses
 import time
 from collections.abc import Iterator
 
-from cogblocks.analysis.sync_bound import upper_bound
 from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
 from cogblocks.diagrams.sync import pop_sync
+from cogblocks.evaluation.sync_bound import upper_bound
 from cogblocks.sim import Simulator
 
 

@@ -9,7 +9,7 @@
   reference.
 * ``mpc.group<N>.<policy>.change_pct``: change of the time-averaged r relative to no L2, for ``mean``,
   ``lookahead``, ``mpc`` (identified model) and ``mpc_true`` (true model); reference: the change that
-  :func:`~cogblocks.analysis.sync_bound.upper_bound` reaches, so ``ratio`` is the fraction of the bound's gain.
+  :func:`~cogblocks.evaluation.sync_bound.upper_bound` reaches, so ``ratio`` is the fraction of the bound's gain.
 * ``mpc.group<N>.<policy>.bound_fraction``: r / bound.
 """
 
@@ -19,9 +19,9 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from cogblocks.analysis.sync_bound import upper_bound
 from cogblocks.data.groups import TABLE2
 from cogblocks.diagrams.sync import pop_sync
+from cogblocks.evaluation.sync_bound import upper_bound
 from cogblocks.sim import Simulator
 from cogblocks.sync import MPCMotion
 

@@ -84,7 +84,7 @@ def _run_sync(args: argparse.Namespace) -> int:
 
 def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
     from cogblocks.diagrams.sync import DEFAULT_MOTION
-    from cogblocks.experiments.sync_heldout import heldout_table, plot_heldout
+    from cogblocks.evaluation.sync_heldout import heldout_table, plot_heldout
 
     if args.domain != "phase" or args.duration is not None or args.save_trace:
         raise ValueError(
@@ -154,7 +154,7 @@ def _run_phase3d(args: argparse.Namespace) -> int:
 
 
 def _run_phase1d(args: argparse.Namespace) -> int:
-    from cogblocks.phase.evaluation1d import EVALUATION_SEEDS, evaluate_grid, plot_grid
+    from cogblocks.evaluation.phase1d import EVALUATION_SEEDS, evaluate_grid, plot_grid
 
     if not 1 <= args.signals <= len(EVALUATION_SEEDS) or not args.duration >= 10.0 or args.workers < 1:
         raise ValueError(

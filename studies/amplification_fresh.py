@@ -2,14 +2,14 @@
 
 Usage::
 
-    python -m cogblocks.experiments.amplification_fresh --library-seed 2027 [--share 0.3] [--limit N]
+    python -m studies.amplification_fresh --library-seed 2027 [--share 0.3] [--limit N]
         [--variants blend blend_rl optimised] [--json]
         [--profile-members P] [--kinematic-members K] [--kinematic-weights FILE ...]
         [--solve-ticks N] [--time-limit-ms T] [--realism R] [--components C] [--emit E] [--margin M]
         [--removal-margin M] [--guard-rest 0|1] [--guard-margin G] [--gradient stacked|blocks] [--predict-setup 0|1]
         [--neighbours K] [--terminal-margin MM] [--front-end recorded|kalman] [--noise-mm MM]
         [--smoothing-hz HZ|auto|none]
-    python -m cogblocks.experiments.amplification_fresh --library-seed 3000 --real
+    python -m studies.amplification_fresh --library-seed 3000 --real
 
 The held-out movements of the shipped split have been looked at in every round of tuning, so their
 figures grow optimistic. Here the humans come from ``generate_reach_library(library_seed)``, a seed no
@@ -161,7 +161,7 @@ def _cutoff(text: str) -> float | str | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point: print both directions on a fresh library (JSON with ``--json``)."""
-    parser = argparse.ArgumentParser(prog="python -m cogblocks.experiments.amplification_fresh", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m studies.amplification_fresh", description=__doc__)
     parser.add_argument("--library-seed", type=int, default=FRESH_SEED, help=f"default {FRESH_SEED}")
     parser.add_argument("--share", type=float, default=1.0, help="seeded stratified share replayed (default 1)")
     parser.add_argument("--limit", type=int, default=None, help="replay only the first N movements per direction")

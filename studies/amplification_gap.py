@@ -2,11 +2,11 @@
 
 Usage::
 
-    python -m cogblocks.experiments.amplification_gap --e-des 0 --limit 30 [--emit human|plan|tail] [--track-past 0|1]
+    python -m studies.amplification_gap --e-des 0 --limit 30 [--emit human|plan|tail] [--track-past 0|1]
 
 Each plan is checked on the movement the block *would* emit if the human followed the prediction (the
 emitted past, then the plan in force). On the inner split
-(:func:`~cogblocks.experiments.amplification_inner.inner_setup`, the blender as :data:`OPTIMISED`), this
+(:func:`~studies.amplification_inner.inner_setup`, the blender as :data:`OPTIMISED`), this
 replays the first ``limit`` inner movements and compares, per movement, that checked movement of the last
 committed plan with the movement actually emitted: the constrained networks' ε̂ on both, the judges'
 decisions on both and the six kinematic features of both; and, over every committed plan, how many fail
@@ -35,7 +35,7 @@ from cogblocks.diagrams.amplification_setup import (
     amplification_judges,
     blender_networks,
 )
-from cogblocks.experiments.amplification_inner import inner_setup
+from studies.amplification_inner import inner_setup
 
 __all__ = ["RecordingBlender", "main", "planned_vs_emitted", "summarise"]
 
@@ -140,7 +140,7 @@ def summarise(rows: list[dict[str, Any]], e_des: int) -> dict[str, Any]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point: print the summary (and with ``--per-movement`` the rows) as JSON."""
-    parser = argparse.ArgumentParser(prog="python -m cogblocks.experiments.amplification_gap", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m studies.amplification_gap", description=__doc__)
     parser.add_argument("--e-des", type=int, choices=(0, 1), default=0)
     parser.add_argument("--limit", type=int, default=30, help="inner movements replayed (default 30)")
     parser.add_argument("--emit", choices=EMISSIONS, default=OPTIMISED.get("emit", "human"))

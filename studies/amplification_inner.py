@@ -2,7 +2,7 @@
 
 Usage::
 
-    python -m cogblocks.experiments.amplification_inner --e-des 1 --limit 30 [--components 12]
+    python -m studies.amplification_inner --e-des 1 --limit 30 [--components 12]
         [--realism 1000] [--margin 0.09] [--time-limit-ms 3.5] [--solver linearised] [--solve-ticks 1]
         [--iterations 10] [--profile-members 2] [--kinematic-members 0] [--emit human|plan|tail] [--track-past 0|1]
         [--removal-margin M] [--guard-rest 0|1] [--guard-margin G] [--kinematic-weights FILE ...]
@@ -86,7 +86,7 @@ def evaluate(
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point: print the inner-split row of one setting as JSON."""
     defaults = {k: v for k, v in OPTIMISED.items() if k != "components"}
-    parser = argparse.ArgumentParser(prog="python -m cogblocks.experiments.amplification_inner", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m studies.amplification_inner", description=__doc__)
     parser.add_argument("--e-des", type=int, choices=(0, 1), default=1)
     parser.add_argument("--limit", type=int, default=30, help="inner movements replayed (default 30)")
     parser.add_argument("--components", type=int, default=int(OPTIMISED["components"]))

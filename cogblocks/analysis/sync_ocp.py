@@ -11,7 +11,7 @@ phases are left unwrapped), in three stages:
 
 1. starts, whole run, all simulated at once: doing nothing, the circular mean of the others (the ``mean``
    policy), and constant reference frequencies θ_ref0 + ω_c t (the grid of
-   :func:`~cogblocks.analysis.sync_bound.constant_frequency_scan`, plus ω_c every 0.05 rad/s from
+   :func:`~cogblocks.evaluation.sync_bound.constant_frequency_scan`, plus ω_c every 0.05 rad/s from
    min ω − 1 to max ω + 1 at θ_ref0 = 0), and with ``pace`` / ``guard`` the references those closed-loop
    policies make (:mod:`cogblocks.analysis.sync_starts`); the best is the incumbent, at tick resolution;
 2. block-coordinate ascent on the whole run: for consecutive windows of ``window`` s, the incumbent's ``s``
@@ -98,8 +98,8 @@ def alteration_model(group: SyncGroup, adjacency: Any = None, blender: BlenderPa
 
 
 #: ``windowed_control_bound(**THOROUGH)``: every policy start and three more sweeps (windows of 2, 10 and 4 s)
-#: after the first. On the first 48 of seed 4's test groups (docs/pop-sync.md, "A thorough bound") it raised the
-#: mean gain of ``upper_bound(pace=False)`` from +3.52 % to +3.82 %, at 2.9× its CPU (with the session-10 guard start).
+#: after the first: a tighter bound (a few tenths of a percentage point of mean gain on held-out groups) at about
+#: three times the CPU (docs/pop-sync.md, "A thorough bound").
 THOROUGH: dict[str, Any] = {
     "pace": True,
     "guard": True,

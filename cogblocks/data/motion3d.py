@@ -179,7 +179,7 @@ def generate_motion3d(
     speed_wobble : float
         Uneven speed within a cycle, in [0, 0.5]: the phase advances at ``1 + speed_wobble · cos(φ + ψ)``
         times its mean speed (ψ random; a cycle lasts ``1 / sqrt(1 − speed_wobble²)`` times longer).
-        0 (the default) draws nothing, so the trajectories of a seed are those of earlier versions.
+        0 (the default) draws nothing, so a seed gives the same trajectories with or without the option.
     dropout_duration : (float, float), optional
         Shortest and longest drop-out in s (0 < shortest <= longest), in place of
         ``dropout_samples``: ``round(duration / dt)`` samples, at least 1, so that a set of

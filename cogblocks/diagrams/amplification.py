@@ -111,7 +111,7 @@ def pop_amplification(
         ``"auto"``: the least smoothing that keeps a still hand's estimate within 12 mm/s, at most 3 Hz),
         followed by a :class:`~cogblocks.sensing.RestGate` (block ``still``) set at the speed a still hand's
         estimate shows at ``noise_mm``, so that the tracker's noise is not emitted and the hand is seen to stop
-        (:mod:`cogblocks.diagrams.tracking`); ``None``: the estimate as it is (the front end before session 12).
+        (:mod:`cogblocks.diagrams.tracking`); ``None``: the estimate as it is.
     """
     one_of("pop_amplification", "front_end", front_end, ("recorded", "kalman"))
     noise_mm = finite_number("pop_amplification", "noise_mm", noise_mm, low=0.0)

@@ -109,7 +109,7 @@ def constant_frequency_scan(
 ) -> float:
     """Best mean order parameter over constant-frequency references, all simulated at once (fast, coarse).
 
-    The cheap bound of the held-out evaluation (:mod:`cogblocks.experiments.sync_heldout`): a coarse grid
+    The cheap bound of the held-out evaluation (:mod:`cogblocks.evaluation.sync_heldout`): a coarse grid
     around the natural frequencies, simulated on the batched model without re-simulation through the
     blocks. :func:`upper_bound` is tighter and much slower.
 

@@ -3,7 +3,7 @@
 Every policy of :data:`cogblocks.diagrams.sync.MOTIONS` runs, in the closed-loop diagram of
 :func:`~cogblocks.diagrams.sync.pop_sync`, on the first groups of the *test* split of
 :func:`~cogblocks.data.groups.random_groups`; each group is compared with itself without L2 and
-with :func:`~cogblocks.analysis.sync_bound.upper_bound` (whole-run optimal control of the alteration, or the
+with :func:`~cogblocks.evaluation.sync_bound.upper_bound` (whole-run optimal control of the alteration, or the
 best constant reference frequency where that is higher; without the ``pace`` start, for time).
 """
 
@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.analysis.sync_bound import upper_bound
 from cogblocks.data.groups import SyncGroup, random_groups
 from cogblocks.diagrams.sync import MOTIONS, run_sync
+from cogblocks.evaluation.sync_bound import upper_bound
 
 __all__ = ["evaluate_group", "heldout_table", "plot_heldout", "summarise"]
 
@@ -113,7 +113,7 @@ def heldout_table(
     bound : bool
         Compute the bound (its fractions are ``None`` without it; it costs about 17 s of CPU per 100 s group).
     thorough : bool
-        The thorough bound instead (:func:`~cogblocks.analysis.sync_bound.upper_bound` with ``thorough=True``):
+        The thorough bound instead (:func:`~cogblocks.evaluation.sync_bound.upper_bound` with ``thorough=True``):
         the ``pace`` and default policies' references as starts and four sweeps, about 3× the CPU.
 
     Returns

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cogblocks.analysis.sync_bound import constant_frequency_bound, resimulate, upper_bound
 from cogblocks.data.groups import TABLE2
 from cogblocks.diagrams.sync import pop_sync
+from cogblocks.evaluation.sync_bound import constant_frequency_bound, resimulate, upper_bound
 from cogblocks.sim import Simulator
 from cogblocks.sync.model import DT
 

@@ -8,10 +8,10 @@ import itertools
 import numpy as np
 import pytest
 
-from cogblocks.analysis.sync_bound import upper_bound
 from cogblocks.analysis.sync_ocp import alteration_model, alteration_rollout, resimulate, windowed_control_bound
 from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
 from cogblocks.diagrams.sync import pop_sync
+from cogblocks.evaluation.sync_bound import upper_bound
 from cogblocks.sim import Simulator
 from cogblocks.sync import GuardedPacingMotion
 from cogblocks.sync.model import DT, BlenderParams, SyncModel, order_parameter

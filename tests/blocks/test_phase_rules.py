@@ -7,8 +7,8 @@ import pytest
 
 from cogblocks.blocks.angles import TWO_PI, wrap_pi
 from cogblocks.data.sensor import simulate_sensor
+from cogblocks.evaluation.phase1d import evaluate_grid
 from cogblocks.phase import PhaseEstimator
-from cogblocks.phase.evaluation1d import evaluate_grid
 from cogblocks.sim import Simulator
 
 

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import connected_components
 
-from cogblocks.analysis.sync_bound import constant_frequency_scan, upper_bound
 from cogblocks.cli import main
 from cogblocks.data.groups import TABLE2, SyncGroup, locking_gain, random_groups
 from cogblocks.diagrams.sync import run_sync
-from cogblocks.experiments.sync_heldout import evaluate_group, heldout_table, plot_heldout
+from cogblocks.evaluation.sync_bound import constant_frequency_scan, upper_bound
+from cogblocks.evaluation.sync_heldout import evaluate_group, heldout_table, plot_heldout
 from cogblocks.sync import SyncModel
 from cogblocks.sync.model import order_parameter
 

@@ -1,4 +1,4 @@
-"""The shipped chain evaluated on a freshly generated library (cogblocks.experiments.amplification_fresh)."""
+"""The shipped chain evaluated on a freshly generated library (studies.amplification_fresh)."""
 
 import json
 
@@ -10,8 +10,8 @@ from cogblocks.amplification import NoCorrection
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import SMOOTHING_HZ, amplification_setup, pop_amplification
 from cogblocks.diagrams.amplification_setup import OPTIMISED, amplification_judges
-from cogblocks.experiments.amplification_fresh import FRESH_SEED, fresh_setup, main, real_shares, run_fresh
 from cogblocks.sim import Simulator
+from studies.amplification_fresh import FRESH_SEED, fresh_setup, main, real_shares, run_fresh
 
 torch.set_num_threads(1)
 
@@ -67,7 +67,7 @@ def test_share_replays_a_stratified_part(humans):
 
 
 def test_run_fresh_constrains_the_networks_and_settings_asked_for(humans, monkeypatch):
-    import cogblocks.experiments.amplification_fresh as fresh
+    import studies.amplification_fresh as fresh
     from cogblocks.diagrams.amplification_setup import CONSTRAINED_MEMBERS, OPTIMISED
 
     calls = []
@@ -102,7 +102,7 @@ def test_real_shares_are_the_judges_on_the_real_movements(humans):
 
 
 def test_command_passes_the_eighth_round_options(monkeypatch, capsys):
-    import cogblocks.experiments.amplification_fresh as fresh
+    import studies.amplification_fresh as fresh
 
     calls = []
     monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
@@ -116,7 +116,7 @@ def test_command_passes_the_eighth_round_options(monkeypatch, capsys):
 
 
 def test_command_passes_the_ninth_round_options(monkeypatch):
-    import cogblocks.experiments.amplification_fresh as fresh
+    import studies.amplification_fresh as fresh
 
     calls = []
     monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
@@ -128,7 +128,7 @@ def test_command_passes_the_ninth_round_options(monkeypatch):
 
 
 def test_command_passes_the_tenth_round_options(monkeypatch):
-    import cogblocks.experiments.amplification_fresh as fresh
+    import studies.amplification_fresh as fresh
 
     calls = []
     monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
@@ -143,7 +143,7 @@ def test_command_passes_the_tenth_round_options(monkeypatch):
 
 
 def test_command_passes_the_thirteenth_round_options(monkeypatch):
-    import cogblocks.experiments.amplification_fresh as fresh
+    import studies.amplification_fresh as fresh
 
     calls = []
     monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
@@ -156,7 +156,7 @@ def test_command_passes_the_thirteenth_round_options(monkeypatch):
 
 
 def test_command_passes_the_front_end(monkeypatch):
-    import cogblocks.experiments.amplification_fresh as fresh
+    import studies.amplification_fresh as fresh
 
     calls = []
     monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])
@@ -176,7 +176,7 @@ def test_a_kalman_front_end_reaches_the_replays():
 
 
 def test_command_passes_the_smoothing(monkeypatch, capsys):
-    import cogblocks.experiments.amplification_fresh as fresh
+    import studies.amplification_fresh as fresh
 
     calls = []
     monkeypatch.setattr(fresh, "run_fresh", lambda *a, **kw: (calls.append(kw), {"library_seed": 1})[1])

@@ -7,7 +7,7 @@ import torch
 
 from cogblocks.diagrams.amplification import amplification_setup
 from cogblocks.diagrams.amplification_setup import OPTIMISED
-from cogblocks.experiments.amplification_inner import evaluate, inner_setup, main
+from studies.amplification_inner import evaluate, inner_setup, main
 
 torch.set_num_threads(1)
 
@@ -51,7 +51,7 @@ def test_command_takes_kinematic_networks_from_files(capsys):
 
 
 def test_command_takes_the_eighth_round_options(capsys, monkeypatch):
-    import cogblocks.experiments.amplification_inner as inner
+    import studies.amplification_inner as inner
 
     calls = []
     monkeypatch.setattr(inner, "run_amplification", lambda *a, **kw: (calls.append(kw), {"optimised": {"n": 0}})[1])
@@ -64,7 +64,7 @@ def test_command_takes_the_eighth_round_options(capsys, monkeypatch):
 
 
 def test_command_takes_the_ninth_round_options(capsys, monkeypatch):
-    import cogblocks.experiments.amplification_inner as inner
+    import studies.amplification_inner as inner
 
     calls = []
     monkeypatch.setattr(inner, "run_amplification", lambda *a, **kw: (calls.append(kw), {"optimised": {"n": 0}})[1])
@@ -76,7 +76,7 @@ def test_command_takes_the_ninth_round_options(capsys, monkeypatch):
 
 
 def test_command_takes_the_tenth_round_options(capsys, monkeypatch):
-    import cogblocks.experiments.amplification_inner as inner
+    import studies.amplification_inner as inner
 
     calls = []
     monkeypatch.setattr(inner, "run_amplification", lambda *a, **kw: (calls.append(kw), {"optimised": {"n": 0}})[1])
