@@ -67,14 +67,11 @@ ALLOWED = {
     "": {"sim"},  # cogblocks/__init__.py re-exports the engine's main names
 }
 
-#: Modules allowed past 400 lines, each one idea that does not split sensibly.
+#: Modules allowed past 400 lines (up to 450), each one idea that does not split sensibly.
 LONG_MODULES = {
     "cogblocks.sim.compiled": "the compiled plan: flattening, ordering, binding and the tick loop share private state",
     "cogblocks.sensing.kalman": "KalmanEstimator and fit_noise, the maximum-likelihood fit of its own noise model",
-    "cogblocks.amplification.optimal": "the OptimalBlender block (its solver lives in encoder_casadi)",
-    "cogblocks.data.loaders": "the loaders of the three formats share their checks and error messages",
     "cogblocks.data.reach": "the seeded synthetic reach-to-grasp library and its container",
-    "cogblocks.phase.algorithm1": "Algorithm 1's tick: its events, drop-out rules and gap filling share one state",
 }
 
 
@@ -221,5 +218,5 @@ def test_a_lazy_import_counts_as_an_import():
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_modules_stay_short(module):
     n = len(MODULES[module].read_text().splitlines())
-    limit = 500 if module in LONG_MODULES else 400
+    limit = 450 if module in LONG_MODULES else 400
     assert n <= limit, f"{module} has {n} lines (limit {limit})"

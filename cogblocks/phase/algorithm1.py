@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import cmath
 import math
 
 import numpy as np
@@ -11,6 +10,7 @@ import scipy.signal
 from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.blocks.specs import FLAG, PHASE
 from cogblocks.phase.gate import NUMERIC_LIMIT
+from cogblocks.phase.oscillation_model import OscillationModel
 from cogblocks.phase.transient import GapTransient
 from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number, positive_int
@@ -22,7 +22,7 @@ _SIGNIFICANT = 0.3  # share of the last amplitude of its kind an extremum must r
 _DOUBT = tuple(0.125 * j for j in range(-4, 5))  # rad: the phase's own error, which rule (b) allows for
 
 
-class Algorithm1Phase(Block):
+class Algorithm1Phase(OscillationModel, Block):
     """Phase and half-amplitudes of a 1D oscillation, sample by sample (Algorithm 1).
 
     The leaf of :class:`PhaseEstimator`: it expects an already low-passed position. Each tick it
@@ -240,20 +240,6 @@ class Algorithm1Phase(Block):
         self.add_state("v_hist", np.zeros(self._m))
         self.add_state("csum", np.zeros(self._size))
 
-    def _window(self, n_pushed: int) -> int:
-        """Number of samples in the centring window."""
-        n = n_pushed
-        if self.omega > 0.0:
-            n = min(n, round(self.centre_periods * TWO_PI / (self.omega * self.dt)))
-        return max(1, min(n, self._size - 1))
-
-    def _extrapolate(self, anchor: float, ticks: int) -> float:
-        """The phase ``ticks`` steps after ``anchor`` at the estimated frequency, held after ``max_coast`` periods."""
-        if self.omega <= 0.0:
-            return anchor
-        limit = self.max_coast * TWO_PI / (self.omega * self.dt)
-        return wrap_angle(anchor + self.omega * self.dt * min(ticks, limit))
-
     def _sample(self) -> tuple[float, float, float, float] | None:
         """``raw, p, v, a`` of this tick, or None when the sample is missing."""
         values = [float(self.raw.value), float(self.p.value)]
@@ -370,50 +356,6 @@ class Algorithm1Phase(Block):
             (amp, known, last, t_max, t_min, omega, t_period, lead, phase, anchor, since, coast),
             (gap_z, gap_z_run),
         )
-
-    def _fill_gap(self, phase: float) -> tuple | None:
-        """With ``remove_transient``, the filtered movement at a missing sample, so differences and centring go on.
-
-        The filter in front ran on the last finite sample; its output plus its response to what it missed is
-        the filtered movement as far as the extrapolation is right. Returns ``(gap_z, p, pc, v, n_pushed,
-        total)`` for :meth:`update`, or None without the removal (nothing advances).
-        """
-        pf = float(self.p.value)
-        if self._transient is None or not self.primed or not math.isfinite(pf):
-            return None
-        response, gap_z = self._transient.step(self.gap_z, self._movement(phase) - self.raw_prev)
-        pf += response
-        n_pushed, total = self.n_pushed + 1, self.total + self._movement(phase - self.lead)
-        return gap_z, pf, self._centred(pf, n_pushed, total), (pf - self.p_prev) / self.dt, n_pushed, total
-
-    def _centred(self, pf: float, n_pushed: int, total: float) -> float:
-        """``pf`` minus the mean of the centring window ending at sample ``n_pushed`` (running sum ``total``)."""
-        n = self._window(n_pushed)
-        start = n_pushed - n
-        # the slot of ``start`` is overwritten only in update(), after this read
-        return pf - (total - (self.csum[start % self._size] if start else 0.0)) / n
-
-    def _movement(self, phase: float) -> float:
-        """The position the oscillation of the last measured centre and amplitudes has at ``phase``."""
-        c = math.cos(phase) if self.omega > 0.0 else 0.0
-        return self.p_prev - self.pc_prev + (self.amp[0] if c >= 0.0 else self.amp[1]) * c
-
-    def _frequency(self, interval: float, omega: float) -> float:
-        """The angular frequency once a period of ``interval`` seconds (0 = none) was measured."""
-        if 0.0 < interval <= self.max_period:
-            return TWO_PI / interval
-        return omega
-
-    def _lag(self, omega: float) -> float:
-        """Phase lag in rad of the filter in front and of the backward-difference velocity at ``omega``."""
-        if self._sos is None:
-            return 0.0
-        z = cmath.exp(-1j * omega * self.dt)
-        h = 1.0 + 0j
-        for b0, b1, b2, _, a1, a2 in self._sos:
-            h *= (b0 + z * (b1 + z * b2)) / (1.0 + z * (a1 + z * a2))
-        # the velocity lags the position by half a step; it weighs half in the phase on average
-        return -cmath.phase(h) + 0.25 * omega * self.dt
 
     def update(self, k: int) -> None:
         pending = self._pending

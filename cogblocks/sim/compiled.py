@@ -143,7 +143,6 @@ class CompiledDiagram:
 
     # -- flattening ----------------------------------------------------------
     def _flatten(self, d, prefix, period, leaves, periods, drivers, external) -> None:
-
         own_period = d.period if d.period is not None else period
         for name, child in d.blocks.items():
             path = prefix + name
@@ -162,14 +161,12 @@ class CompiledDiagram:
                 external[name] = self._leaf_inputs(d, name)
 
     def _leaf_output(self, block: Block, port: str) -> Output:
-
         while block.composite:
             child, port = block.exposed_outputs[port]
             block = block.blocks[child]
         return block.outputs[port]
 
     def _leaf_inputs(self, block: Block, port: str) -> list[Input]:
-
         if not block.composite:
             return [block.inputs[port]]
         found: list[Input] = []
