@@ -5,6 +5,9 @@ Every reader returns a :class:`~cogblocks.data.reach.ReachLibrary` padded to ``m
 :class:`DataFormatError` whose message starts with the file name and says what is wrong; a missing
 file raises :class:`FileNotFoundError` and a directory :class:`IsADirectoryError`, both naming the
 path. Pickled Python objects are never loaded (loading them can run arbitrary code).
+
+Every reader takes the file's length unit (``unit``: m, cm or mm; velocities in that unit per
+second) and converts to the library's mm and mm/s; a unit that is not a length is refused, named.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 import scipy.io
 
 from cogblocks.data.reach import ReachLibrary
+from cogblocks.data.units import to_mm
 
 __all__ = [
     "CSV_COLUMNS",
@@ -81,8 +85,9 @@ def _library_from_movements(
     labels: dict[str, list[int]],
     max_len: int,
     dt: float,
+    scale: float = 1.0,
 ) -> ReachLibrary:
-    """Pad movements of their own lengths (velocity with zeros, position holding its last value)."""
+    """Pad movements of their own lengths (velocity with zeros, position holding its last value), times ``scale``."""
     n = len(velocities)
     velocity = np.zeros((n, max_len, 3))
     position = np.zeros((n, max_len, 3))
@@ -92,8 +97,8 @@ def _library_from_movements(
         position[i, len(p) :] = p[-1]
     try:
         return ReachLibrary(
-            velocity=velocity,
-            position=position,
+            velocity=velocity * scale,
+            position=position * scale,
             length=np.array([len(v) for v in velocities], dtype=np.int64),
             dt=dt,
             **{name: np.array(values, dtype=np.int64) for name, values in labels.items()},
@@ -106,7 +111,7 @@ def _library_from_movements(
 
 
 def load_velocity_data_mat(
-    path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_field: str = "Condition"
+    path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_field: str = "Condition", unit: str = "mm"
 ) -> ReachLibrary:
     """Load the real data set's MATLAB file (struct ``VelocityData``, one field per participant).
 
@@ -136,6 +141,8 @@ def load_velocity_data_mat(
         Sampling time in seconds (the motion capture ran at 100 Hz).
     label_field : str
         The trial field holding the fear label (``Condition``).
+    unit : {"mm", "cm", "m"}
+        Length unit of ``Vxyzf`` (velocities in ``unit``/s), converted to mm/s.
 
     Returns
     -------
@@ -149,6 +156,7 @@ def load_velocity_data_mat(
         If the file is not a MATLAB file or does not follow the layout above.
     """
     file = _existing_file(path)
+    scale = to_mm(unit, "load_velocity_data_mat: unit")
     try:
         content = scipy.io.loadmat(file, squeeze_me=True, struct_as_record=False)
     except (ValueError, TypeError, OSError, NotImplementedError) as error:
@@ -177,7 +185,7 @@ def load_velocity_data_mat(
     if not velocities:
         raise DataFormatError(f"{file}: no trial is baseline, association subphase 3 or extinction subphase 1")
     positions = [np.concatenate([np.zeros((1, 3)), np.cumsum(v[:-1] * dt, axis=0)]) for v in velocities]
-    return _library_from_movements(file, velocities, positions, labels, max_len, dt)
+    return _library_from_movements(file, velocities, positions, labels, max_len, dt, scale)
 
 
 def _participant_trials(file: Path, participant: str, trials: Any) -> list[Any]:
@@ -272,11 +280,15 @@ def save_npz(library: ReachLibrary, path: PathLike) -> None:
         )
 
 
-def load_npz(path: PathLike, *, label_field: str = "fear", dt: float | None = None) -> ReachLibrary:
+def load_npz(
+    path: PathLike, *, label_field: str = "fear", dt: float | None = None, unit: str | None = None
+) -> ReachLibrary:
     """Load a library saved by :func:`save_npz` (see there for the keys and shapes).
 
     ``label_field`` names the key of the fear label; ``dt`` (seconds), when given, replaces the
-    archive's ``dt``, which may then be absent.
+    archive's ``dt``, which may then be absent. ``unit`` (m, cm or mm) is the length unit of
+    ``position`` (``velocity`` in ``unit``/s), converted to mm; by default the archive's ``unit``
+    key (a string) if it has one, else mm.
 
     Raises
     ------
@@ -286,6 +298,8 @@ def load_npz(path: PathLike, *, label_field: str = "fear", dt: float | None = No
         If the file is not an npz archive, lacks a key, or holds arrays of the wrong type or shape.
     """
     file = _existing_file(path)
+    if unit is not None:
+        to_mm(unit, "load_npz: unit")
     try:
         archive = np.load(file, allow_pickle=False)
     except (OSError, EOFError, ValueError, zipfile.BadZipFile) as error:
@@ -306,6 +320,14 @@ def load_npz(path: PathLike, *, label_field: str = "fear", dt: float | None = No
                 arrays[key] = archive[name]
             except (OSError, ValueError, zipfile.BadZipFile) as error:  # object arrays need pickle: refused
                 raise DataFormatError(f"{file}: key '{key}' is unreadable ({_unreadable(error)})") from error
+        if unit is None:
+            unit = str(archive["unit"]) if "unit" in archive.files and archive["unit"].dtype.kind == "U" else "mm"
+    try:
+        scale = to_mm(unit, f"{file}: unit")
+    except ValueError as error:
+        raise DataFormatError(str(error)) from None
+    arrays["velocity"] = arrays["velocity"] * scale if _is_real(arrays["velocity"].dtype) else arrays["velocity"]
+    arrays["position"] = arrays["position"] * scale if _is_real(arrays["position"].dtype) else arrays["position"]
     for key, array in arrays.items():
         if not _is_real(array.dtype):
             raise DataFormatError(f"{file}: key '{key}' is not numeric (dtype {array.dtype})")
@@ -338,7 +360,9 @@ def save_csv(library: ReachLibrary, path: PathLike) -> None:
     np.savetxt(path, table, fmt=["%d"] * 5 + ["%.17g"] * 6, delimiter=",", header=",".join(CSV_COLUMNS), comments="")
 
 
-def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_field: str = "fear") -> ReachLibrary:
+def load_csv(
+    path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_field: str = "fear", unit: str = "mm"
+) -> ReachLibrary:
     """Load a long-format CSV file written by :func:`save_csv` (see there for the columns).
 
     Columns may come in any order and extra columns are ignored. Movements keep the order of
@@ -356,6 +380,8 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_fiel
         Sampling time in seconds (not stored in the file).
     label_field : str
         The column of the fear label (``fear``).
+    unit : {"mm", "cm", "m"}
+        Length unit of ``px, py, pz`` (``vx, vy, vz`` in ``unit``/s), converted to mm.
 
     Returns
     -------
@@ -371,6 +397,7 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_fiel
         If the file is empty, lacks a column, or holds non-numeric, non-finite or inconsistent values.
     """
     file = _existing_file(path)
+    scale = to_mm(unit, "load_csv: unit")
     table, lines = _read_csv_table(file, label_field)
     bad = ~np.isfinite(table)
     if bad.any():
@@ -404,7 +431,7 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = 0.01, *, label_fiel
             labels[name].append(int(rows_of_movement[0, column]))
         positions.append(rows_of_movement[:, 5:8])
         velocities.append(rows_of_movement[:, 8:11])
-    return _library_from_movements(file, velocities, positions, labels, max_len, dt)
+    return _library_from_movements(file, velocities, positions, labels, max_len, dt, scale)
 
 
 def _read_csv_table(file: Path, label_field: str) -> tuple[np.ndarray, np.ndarray]:

@@ -57,7 +57,9 @@ class MarkerRecording:
         object.__setattr__(self, "points", points)
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "markers", tuple(self.markers))
-        object.__setattr__(self, "events", tuple(sorted(((str(a), float(b)) for a, b in self.events), key=lambda e: e[1])))
+        object.__setattr__(
+            self, "events", tuple(sorted(((str(a), float(b)) for a, b in self.events), key=lambda e: e[1]))
+        )
 
     @property
     def dt(self) -> float:
