@@ -92,18 +92,24 @@ class MarkerRecording:
             raise ValueError(f"MarkerRecording.resampled: dt must be a positive number of seconds, got {dt!r}")
         n = int(math.floor((self.t[-1] - self.t[0]) / dt + 1e-9)) + 1
         grid = self.t[0] + dt * np.arange(n)
-        out = np.full((n, len(self.markers), 3), np.nan)
+        return MarkerRecording(self.on_grid(grid), grid, 1.0 / dt, self.markers, self.events, self.source)
+
+    def on_grid(self, grid: np.ndarray) -> np.ndarray:
+        """The points at the times ``grid`` (s), interpolated as :meth:`resampled` does: (len(grid), n_markers, 3)."""
+        grid = np.asarray(grid, dtype=np.float64)
+        tol = 1e-9 * (float(np.median(np.diff(grid))) if len(grid) > 1 else 1.0)
+        out = np.full((len(grid), len(self.markers), 3), np.nan)
         for m in range(len(self.markers)):
             seen = np.isfinite(self.points[:, m]).all(axis=1)
             for start, stop in _runs(seen):
                 ts, ps = self.t[start:stop], self.points[start:stop, m]
-                inside = (grid >= ts[0] - 1e-9 * dt) & (grid <= ts[-1] + 1e-9 * dt)
+                inside = (grid >= ts[0] - tol) & (grid <= ts[-1] + tol)
                 if len(ts) == 1:
                     out[inside, m] = ps[0]
                     continue
                 spline = scipy.interpolate.make_interp_spline(ts, ps, k=3 if len(ts) >= 4 else 1, axis=0)
                 out[inside, m] = spline(np.clip(grid[inside], ts[0], ts[-1]))
-        return MarkerRecording(out, grid, 1.0 / dt, self.markers, self.events, self.source)
+        return out
 
     def select(self, names: list[str] | tuple[str, ...]) -> MarkerRecording:
         """The recording restricted to the named markers, in that order."""
