@@ -11,7 +11,7 @@ from cogblocks.blocks.angles import TWO_PI, wrap_2pi
 from cogblocks.phase.customizer import _as_curve
 from cogblocks.sim.params import finite_number
 
-__all__ = ["hilbert_phase", "offline_phase_pca_hilbert"]
+__all__ = ["hilbert_phase", "mean_cycle", "offline_phase_pca_hilbert"]
 
 
 def hilbert_phase(p: np.ndarray, *, dt: float = 0.01, highpass: float | None = None) -> np.ndarray:
@@ -117,6 +117,41 @@ def offline_phase_pca_hilbert(positions: np.ndarray) -> np.ndarray:
     k = np.arange(round(cycle))
     offset = np.angle(np.exp(1j * (TWO_PI * k / cycle - phase[k])).mean())
     return wrap_2pi(phase + offset)
+
+
+def mean_cycle(positions: np.ndarray, n_samples: int = 200) -> np.ndarray:
+    """A reference motion made from a recording: its mean cycle over its offline phase.
+
+    Samples are binned by their :func:`offline_phase_pca_hilbert` phase into ``n_samples`` equal bins
+    and averaged; a bin no sample fell in is interpolated from its neighbours (circularly). Phase 0
+    is the offline phase's, the start of the motion, as the online estimator counts it. For a
+    recording without a primitive library, this is the ``reference`` of
+    :class:`~cogblocks.phase.PhaseEstimator3D`.
+
+    Parameters
+    ----------
+    positions : numpy.ndarray, shape (n, 3)
+        The recording at a constant rate, finite, at least one full cycle.
+    n_samples : int
+        Samples of the returned cycle (>= 3).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_samples, 3)
+        The cycle at the phases ``2π i / n_samples``, in the positions' unit.
+    """
+    x = _as_curve("mean_cycle", "positions", positions, 4)
+    if not (isinstance(n_samples, int) and n_samples >= 3):
+        raise ValueError(f"mean_cycle: n_samples must be an integer >= 3, got {n_samples!r}")
+    bins = np.minimum((offline_phase_pca_hilbert(x) / TWO_PI * n_samples).astype(int), n_samples - 1)
+    counts = np.bincount(bins, minlength=n_samples)
+    sums = np.stack([np.bincount(bins, weights=x[:, axis], minlength=n_samples) for axis in range(3)], axis=1)
+    filled = counts > 0
+    centres = np.arange(n_samples)
+    cycle = sums[filled] / counts[filled, None]
+    return np.stack(
+        [np.interp(centres, centres[filled], cycle[:, axis], period=n_samples) for axis in range(3)], axis=1
+    )
 
 
 def _first_cycle(phase: np.ndarray, owner: str) -> float:
