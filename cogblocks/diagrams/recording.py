@@ -64,9 +64,7 @@ def filled(position: np.ndarray) -> np.ndarray:
     return out
 
 
-def recorded_motion(
-    recording: str | os.PathLike | MarkerRecording, marker: str, *, dt: float = 0.01
-) -> RecordedMotion:
+def recorded_motion(recording: str | os.PathLike | MarkerRecording, marker: str, *, dt: float = 0.01) -> RecordedMotion:
     """One marker of a C3D/XDF file (or of a loaded :class:`MarkerRecording`) on a grid of step ``dt``."""
     if isinstance(recording, MarkerRecording):
         rec = recording.select([marker]).resampled(dt)

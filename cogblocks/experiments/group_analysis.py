@@ -3,8 +3,13 @@
 Each participant is one marker of a C3D or XDF file (:func:`~cogblocks.data.recordings.load_recording`).
 Their phase is computed twice: offline, by the PCA-Hilbert reference
 (:func:`~cogblocks.phase.offline_phase_pca_hilbert`, gaps bridged linearly first), and online, by
-the :class:`~cogblocks.phase.PhaseEstimator3D` a live run would use (its reference the recording's
-own mean cycle, :func:`~cogblocks.phase.mean_cycle`). The group's order parameter is
+the :class:`~cogblocks.phase.PhaseEstimator3D` a live run would use (its reference the participant's
+own mean cycle, :func:`~cogblocks.phase.mean_cycle`). Both count phase 0 at a landmark of the
+movement (the maximum of the position's projection on its principal direction, ``anchor=False``),
+not at each person's own start, so that the phases of people making the same movement in the same
+frame compare (people facing each other mirror it, and come out half a cycle apart). The online
+estimator counts from the start of motion (assumption 3 of section 6.1.1); the constant between the
+two offline conventions moves it to the landmark. The group's order parameter is
 ``r(t) = |mean_i exp(i θ_i(t))|`` over the ticks every participant has a phase on (seen, and for
 the Hilbert phase more than one mean period from either end of the recording, where it is unreliable).
 
@@ -30,8 +35,9 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+import scipy.stats
 
-from cogblocks.blocks.angles import TWO_PI, wrap_pi
+from cogblocks.blocks.angles import TWO_PI, wrap_2pi, wrap_pi
 from cogblocks.data.markers import MarkerRecording
 from cogblocks.data.recordings import load_recording
 from cogblocks.diagrams.phase3d import run_phase_estimator
@@ -76,7 +82,7 @@ def surrogate_test(
     -------
     dict
         ``r_mean`` (observed), ``null_mean`` and ``null_p95`` (of the surrogates), ``p_value``,
-        ``n_surrogates``, ``surrogate``.
+        ``n_surrogates``, ``surrogate`` and ``null`` (the surrogates' time-averaged r, an array).
     """
     theta = np.asarray(theta, dtype=np.float64)
     usable = np.asarray(usable, dtype=bool)
@@ -104,6 +110,7 @@ def surrogate_test(
         "p_value": float((1 + np.count_nonzero(null >= observed)) / (1 + n_surrogates)),
         "n_surrogates": n_surrogates,
         "surrogate": kind,
+        "null": null,
     }
 
 
@@ -154,7 +161,7 @@ def analyse_group(
     offline = np.empty(seen.shape)
     for i, name in enumerate(rec.markers):
         try:
-            offline[i] = offline_phase_pca_hilbert(filled(rec.points[:, i]))
+            offline[i] = offline_phase_pca_hilbert(filled(rec.points[:, i]), anchor=False)
         except ValueError as error:
             raise ValueError(f"{rec.source}: marker {name!r}: {error}") from None
     edge = int(np.ceil(_mean_period(offline, seen)))
@@ -180,7 +187,10 @@ def analyse_group(
             position = rec.points[:, i]
             motion = RecordedMotion(t, position, mean_cycle(filled(position)), dt, name, rec.source)
             run = run_phase_estimator(motion)
-            theta[i], valid[i] = run["theta"], run["valid"] & seen[i]
+            valid[i] = run["valid"] & seen[i]
+            # from the start-of-motion origin to the landmark: the constant between the two offline conventions
+            shift = scipy.stats.circmean(offline[i] - offline_phase_pca_hilbert(filled(position)))
+            theta[i] = wrap_2pi(run["theta"] + shift)
         test = _decided(surrogate_test(theta, valid, **options), alpha)
         both = valid & usable_offline
         diff = np.abs(wrap_pi(theta[both] - offline[both]))
@@ -188,10 +198,10 @@ def analyse_group(
         result["online"] = test
         r_online = np.where(valid.all(axis=0), order_parameter(theta), np.nan)
     for label, mask in _conditions(rec.events, t, dt).items():
-        in_condition = usable_offline & mask
+        # the condition's ticks alone: surrogates shift within them, never into another condition
         entry: dict[str, Any] = {"duration_s": float(mask.sum() * dt)}
         try:
-            entry["offline"] = _decided(surrogate_test(offline, in_condition, **options), alpha)
+            entry["offline"] = _decided(surrogate_test(offline[:, mask], usable_offline[:, mask], **options), alpha)
         except ValueError as error:  # a condition too short to test
             entry["offline"] = None
             entry["note"] = str(error)
@@ -231,4 +241,3 @@ def _shifted(
     rows = np.arange(n)
     index = (rows[None, :] - shifts[:, None]) % n
     return np.take_along_axis(theta, index, axis=1), np.take_along_axis(usable, index, axis=1)
-
