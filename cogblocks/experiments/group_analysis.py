@@ -52,7 +52,7 @@ _MIN_SHIFT_PERIODS = 2.0
 
 def order_parameter(theta: np.ndarray) -> np.ndarray:
     """``r(t) = |mean_i exp(i θ_i(t))|`` of phases of shape (N, n): shape (n,)."""
-    return np.abs(np.exp(1j * np.asarray(theta)).mean(axis=0))
+    return 1.0 - scipy.stats.circvar(np.asarray(theta), axis=0)  # scipy's circular variance is 1 − r
 
 
 def surrogate_test(

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import scipy.signal
+import scipy.stats
 
 from cogblocks.blocks.angles import TWO_PI, wrap_2pi
 from cogblocks.phase.customizer import _as_curve
@@ -122,7 +123,7 @@ def offline_phase_pca_hilbert(positions: np.ndarray, *, anchor: bool = True) -> 
         return wrap_2pi(phase)
     cycle = _first_cycle(phase, owner)
     k = np.arange(round(cycle))
-    offset = np.angle(np.exp(1j * (TWO_PI * k / cycle - phase[k])).mean())
+    offset = scipy.stats.circmean(TWO_PI * k / cycle - phase[k], high=np.pi, low=-np.pi)
     return wrap_2pi(phase + offset)
 
 
