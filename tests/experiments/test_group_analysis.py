@@ -104,3 +104,17 @@ def test_bad_requests_are_refused_by_name():
         analyse_group(rec, ["P1", "P7"])
     with pytest.raises(ValueError, match="n_surrogates must be an integer >= 19"):
         surrogate_test(np.zeros((2, 10)), np.ones((2, 10), dtype=bool), n_surrogates=5)
+
+
+def test_an_occluded_participant_leaves_r_undefined_there_and_the_rest_counts():
+    theta = locked_phases(11)
+    rec = group_recording(theta, seed=11)
+    points = rec.points.copy()
+    points[1000:1200, 2] = np.nan  # P3 hidden for 2 s
+    hidden = type(rec)(points, rec.t, rec.rate, rec.markers, rec.events, rec.source)
+    result = analyse_group(hidden, NAMES, online=False)
+    r = result["series"]["r_offline"]
+    assert np.isnan(r[1000:1200]).all() and np.isfinite(r[400:950]).all() and np.isfinite(r[1250:2500]).all()
+    assert result["offline"]["above_chance"]
+    defined = ~np.isnan(r)
+    np.testing.assert_allclose(r[defined], order_parameter(theta)[defined], atol=0.05)
