@@ -23,7 +23,7 @@ from cogblocks.data.recordings import load_recording
 from cogblocks.diagrams.phase3d import chain_summary, run_phase_estimator
 from cogblocks.phase import mean_cycle, offline_phase_pca_hilbert
 
-__all__ = ["RecordedMotion", "filled", "phase3d_recording", "recorded_motion"]
+__all__ = ["RecordedMotion", "filled", "phase3d_recording", "plot_phase3d_recording", "recorded_motion"]
 
 
 @dataclass(frozen=True)
@@ -114,3 +114,39 @@ def phase3d_recording(
         "p95_error_vs_offline_rad": float(np.percentile(error, 95)),
         "chain": chain_summary(motion, motion_computer),
     }
+
+
+def plot_phase3d_recording(
+    recording: str | os.PathLike | MarkerRecording, marker: str, path: str, *, dt: float = 0.01, shown: float = 12.0
+) -> None:
+    """Draw a recorded marker's online and offline phases (first ``shown`` s) and their difference to ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cogblocks.diagrams.phase3d import _break_wraps
+
+    motion = recorded_motion(recording, marker, dt=dt)
+    run = run_phase_estimator(motion)
+    offline = offline_phase_pca_hilbert(filled(motion.position))
+    seen = np.isfinite(motion.position).all(axis=1)
+    valid = run["valid"] & seen
+    t = motion.t
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 3.8))
+    window = t < shown
+    left.plot(t[window], _break_wraps(offline[window]), lw=1.2, label="offline (PCA + Hilbert)")
+    left.plot(t[window], _break_wraps(np.where(valid, run["theta"], np.nan)[window]), lw=1.2, ls="--", label="online")
+    for start in t[window][np.flatnonzero(np.diff(np.r_[1, seen[window].astype(int)]) == -1)]:
+        left.axvline(start, color="0.7", lw=0.6)  # where the marker was lost
+    left.set_xlabel("t [s]")
+    left.set_ylabel("phase [rad]")
+    left.set_title(f"{motion.marker} in {os.path.basename(motion.source)}", fontsize=9)
+    left.legend(loc="upper right", fontsize=8)
+    right.plot(t[valid], wrap_pi(run["theta"] - offline)[valid], lw=0.8)
+    right.axhline(0.0, color="0.5", lw=0.6)
+    right.set_xlabel("t [s]")
+    right.set_ylabel("online − offline [rad]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

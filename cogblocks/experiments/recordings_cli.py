@@ -31,12 +31,12 @@ def add_recording_options(phase3d: argparse.ArgumentParser, synthetic: Callable[
 
 
 def _run_phase3d_recording(args: argparse.Namespace) -> int:
-    from cogblocks.diagrams.recording import phase3d_recording
+    from cogblocks.diagrams.recording import phase3d_recording, plot_phase3d_recording
 
     if args.marker is None:
         raise ValueError("--recording needs --marker NAME (the marker whose phase is estimated)")
-    if (args.trajectories, args.seed, args.rate, args.motion_set) != (30, 0, 100.0, "today") or args.plot:
-        raise ValueError("--recording runs on the file: drop --trajectories, --seed, --rate, --set and --plot")
+    if (args.trajectories, args.seed, args.rate, args.motion_set) != (30, 0, 100.0, "today"):
+        raise ValueError("--recording runs on the file: drop --trajectories, --seed, --rate and --set")
     r = phase3d_recording(args.recording, args.marker)
     chain = r["chain"]
     text = (
@@ -48,6 +48,9 @@ def _run_phase3d_recording(args: argparse.Namespace) -> int:
         f"|θ_L2 − θ_L0| mean {chain['mean_dev_rad']:.3f} rad, valid from {chain['valid_from_s']:.2f} s"
     )
     print(json.dumps(r) if args.json else text, flush=True)
+    if args.plot:
+        plot_phase3d_recording(args.recording, args.marker, args.plot)
+        print(f"wrote {args.plot}", file=sys.stderr, flush=True)
     return 0
 
 
@@ -145,9 +148,11 @@ def plot_group(result: dict[str, Any], series: dict[str, np.ndarray], nulls: dic
     left.set_ylabel("r(t)")
     left.set_ylim(0.0, 1.02)
     left.legend(loc="lower right", fontsize=8)
-    for name, null in nulls.items():
-        right.hist(null, bins=30, alpha=0.5, label=f"surrogates ({name})")
-        right.axvline(result[name]["r_mean"], lw=1.5, label=f"observed ({name}), p = {result[name]['p_value']:.3g}")
+    for k, (name, null) in enumerate(nulls.items()):
+        colour = f"C{k}"
+        right.hist(null, bins=30, alpha=0.5, color=colour, label=f"surrogates ({name})")
+        observed = f"observed ({name}), p = {result[name]['p_value']:.3g}"
+        right.axvline(result[name]["r_mean"], lw=1.5, color=colour, ls="-" if k == 0 else "--", label=observed)
     right.set_xlabel("time-averaged r")
     right.legend(fontsize=7)
     fig.tight_layout()

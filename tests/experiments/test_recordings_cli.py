@@ -81,7 +81,20 @@ def test_bad_analyse_requests_are_refused_before_any_work(tmp_path, capsys, sess
 def test_run_phase3d_on_a_recording(tmp_path, capsys):
     motion = generate_motion3d(2, duration=15.0)
     write_c3d(tmp_path / "arm.c3d", motion.position[:, None] / 10, ["RWRA"], 100, unit="cm")
-    assert main(["run", "phase3d", "--recording", str(tmp_path / "arm.c3d"), "--marker", "RWRA", "--json"]) == 0
+    figure = tmp_path / "arm.png"
+    args = [
+        "run",
+        "phase3d",
+        "--recording",
+        str(tmp_path / "arm.c3d"),
+        "--marker",
+        "RWRA",
+        "--json",
+        "--plot",
+        str(figure),
+    ]
+    assert main(args) == 0
+    assert figure.stat().st_size > 0
     result = json.loads(capsys.readouterr().out)
     assert result["marker"] == "RWRA" and result["mean_error_vs_offline_rad"] < 0.1
     assert {"r_mean", "valid_from_s", "mean_dev_rad", "max_dev_rad", "avatar_path_mm"} <= set(result["chain"])
@@ -89,3 +102,5 @@ def test_run_phase3d_on_a_recording(tmp_path, capsys):
     assert "--recording needs --marker NAME" in capsys.readouterr().err
     assert main(["run", "phase3d", "--marker", "RWRA"]) == 2
     assert "give --recording too" in capsys.readouterr().err
+    assert main(["run", "phase3d", "--recording", str(tmp_path / "arm.c3d"), "--marker", "RWRA", "--seed", "3"]) == 2
+    assert "drop --trajectories, --seed, --rate and --set" in capsys.readouterr().err
