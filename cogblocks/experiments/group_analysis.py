@@ -202,7 +202,8 @@ def analyse_group(
         test["mean_error_vs_offline_rad"] = float(diff.mean()) if diff.size else None
         result["online"] = test
         r_online = np.where(valid.all(axis=0), order_parameter(theta), np.nan)
-    for label, mask in _conditions(rec.events, t, dt).items():
+    events = tuple((label, time - rec.t[0]) for label, time in rec.events)  # on the same clock as t
+    for label, mask in _conditions(events, t, dt).items():
         # the condition's ticks alone: surrogates shift within them, never into another condition
         entry: dict[str, Any] = {"duration_s": float(mask.sum() * dt)}
         try:
