@@ -10,6 +10,7 @@ from typing import Any
 
 from cogblocks.cli_options import COUNT, DURATION, PLOT_PATH, POLICY, SEED, STEP
 from cogblocks.experiments.cli import add_sweep_parser
+from cogblocks.experiments.recordings_cli import add_analyse_parser, add_recording_options
 from cogblocks.live.cli import add_live_parser
 
 __all__ = ["main"]
@@ -322,7 +323,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "100-300 ms freezes, 10 %% drifts; docs/phase-estimation-3d.md)",
     )
     _common(phase3d)
-    phase3d.set_defaults(handler=_run_phase3d)
+    add_recording_options(phase3d, _run_phase3d)
 
     phase1d = targets.add_parser("phase1d", help="1D phase estimation over sensor rates, units, quantisation, noise")
     phase1d.add_argument("--signals", type=int, default=10, help="seeded signals per cell (default 10, at most 10)")
@@ -356,6 +357,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _common(demo, trace=True)
     demo.set_defaults(handler=_run_demo)
     add_sweep_parser(commands)
+    add_analyse_parser(commands)
     add_live_parser(commands)
     return parser
 

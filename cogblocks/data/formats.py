@@ -63,8 +63,9 @@ def library_from_movements(
     labels: dict[str, list[int]],
     max_len: int,
     dt: float,
+    scale: float = 1.0,
 ) -> ReachLibrary:
-    """Pad movements of their own lengths (velocity with zeros, position holding its last value)."""
+    """Pad movements of their own lengths (velocity with zeros, position holding its last value), times ``scale``."""
     n = len(velocities)
     velocity = np.zeros((n, max_len, 3))
     position = np.zeros((n, max_len, 3))
@@ -74,8 +75,8 @@ def library_from_movements(
         position[i, len(p) :] = p[-1]
     try:
         return ReachLibrary(
-            velocity=velocity,
-            position=position,
+            velocity=velocity * scale,
+            position=position * scale,
             length=np.array([len(v) for v in velocities], dtype=np.int64),
             dt=dt,
             **{name: np.array(values, dtype=np.int64) for name, values in labels.items()},

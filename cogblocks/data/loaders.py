@@ -5,6 +5,9 @@ Every reader returns a :class:`~cogblocks.data.reach.ReachLibrary` padded to ``m
 :class:`DataFormatError` whose message starts with the file name and says what is wrong; a missing
 file raises :class:`FileNotFoundError` and a directory :class:`IsADirectoryError`, both naming the
 path. Pickled Python objects are never loaded (loading them can run arbitrary code).
+
+Every reader takes the file's length unit (``unit``: m, cm or mm; velocities in that unit per
+second) and converts to the library's mm and mm/s; a unit that is not a length is refused, named.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from cogblocks.data.formats import (
 )
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.data.reach_csv import CSV_COLUMNS, load_csv, save_csv
+from cogblocks.data.units import to_mm
 from cogblocks.sim.timing import BASE_STEP
 
 __all__ = [
@@ -50,7 +54,12 @@ _KEPT_SUBPHASE = {"ASSOCIATION": 3, "EXTINCTION": 1}
 
 
 def load_velocity_data_mat(
-    path: PathLike, max_len: int = 200, dt: float = BASE_STEP, *, label_field: str = "Condition"
+    path: PathLike,
+    max_len: int = 200,
+    dt: float = BASE_STEP,
+    *,
+    label_field: str = "Condition",
+    unit: str = "mm",
 ) -> ReachLibrary:
     """Load the real data set's MATLAB file (struct ``VelocityData``, one field per participant).
 
@@ -80,6 +89,8 @@ def load_velocity_data_mat(
         Sampling time in seconds (the motion capture ran at 100 Hz).
     label_field : str
         The trial field holding the fear label (``Condition``).
+    unit : {"mm", "cm", "m"}
+        Length unit of ``Vxyzf`` (velocities in ``unit``/s), converted to mm/s.
 
     Returns
     -------
@@ -93,6 +104,7 @@ def load_velocity_data_mat(
         If the file is not a MATLAB file or does not follow the layout above.
     """
     file = existing_file(path)
+    scale = to_mm(unit, "load_velocity_data_mat: unit")
     try:
         content = scipy.io.loadmat(file, squeeze_me=True, struct_as_record=False)
     except (ValueError, TypeError, OSError, NotImplementedError) as error:
@@ -121,7 +133,7 @@ def load_velocity_data_mat(
     if not velocities:
         raise DataFormatError(f"{file}: no trial is baseline, association subphase 3 or extinction subphase 1")
     positions = [np.concatenate([np.zeros((1, 3)), np.cumsum(v[:-1] * dt, axis=0)]) for v in velocities]
-    return library_from_movements(file, velocities, positions, labels, max_len, dt)
+    return library_from_movements(file, velocities, positions, labels, max_len, dt, scale)
 
 
 def _participant_trials(file: Path, participant: str, trials: Any) -> list[Any]:
@@ -216,11 +228,15 @@ def save_npz(library: ReachLibrary, path: PathLike) -> None:
         )
 
 
-def load_npz(path: PathLike, *, label_field: str = "fear", dt: float | None = None) -> ReachLibrary:
+def load_npz(
+    path: PathLike, *, label_field: str = "fear", dt: float | None = None, unit: str | None = None
+) -> ReachLibrary:
     """Load a library saved by :func:`save_npz` (see there for the keys and shapes).
 
     ``label_field`` names the key of the fear label; ``dt`` (seconds), when given, replaces the
-    archive's ``dt``, which may then be absent.
+    archive's ``dt``, which may then be absent. ``unit`` (m, cm or mm) is the length unit of
+    ``position`` (``velocity`` in ``unit``/s), converted to mm; by default the archive's ``unit``
+    key (a string) if it has one, else mm.
 
     Raises
     ------
@@ -230,6 +246,8 @@ def load_npz(path: PathLike, *, label_field: str = "fear", dt: float | None = No
         If the file is not an npz archive, lacks a key, or holds arrays of the wrong type or shape.
     """
     file = existing_file(path)
+    if unit is not None:
+        to_mm(unit, "load_npz: unit")
     try:
         archive = np.load(file, allow_pickle=False)
     except (OSError, EOFError, ValueError, zipfile.BadZipFile) as error:
@@ -250,6 +268,14 @@ def load_npz(path: PathLike, *, label_field: str = "fear", dt: float | None = No
                 arrays[key] = archive[name]
             except (OSError, ValueError, zipfile.BadZipFile) as error:  # object arrays need pickle: refused
                 raise DataFormatError(f"{file}: key '{key}' is unreadable ({unreadable(error)})") from error
+        if unit is None:
+            unit = str(archive["unit"]) if "unit" in archive.files and archive["unit"].dtype.kind == "U" else "mm"
+    try:
+        scale = to_mm(unit, f"{file}: unit")
+    except ValueError as error:
+        raise DataFormatError(str(error)) from None
+    arrays["velocity"] = arrays["velocity"] * scale if is_real(arrays["velocity"].dtype) else arrays["velocity"]
+    arrays["position"] = arrays["position"] * scale if is_real(arrays["position"].dtype) else arrays["position"]
     for key, array in arrays.items():
         if not is_real(array.dtype):
             raise DataFormatError(f"{file}: key '{key}' is not numeric (dtype {array.dtype})")

@@ -10,6 +10,7 @@ import numpy as np
 
 from cogblocks.data.formats import LABEL_HINT, DataFormatError, PathLike, existing_file, library_from_movements
 from cogblocks.data.reach import ReachLibrary
+from cogblocks.data.units import to_mm
 from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["CSV_COLUMNS", "load_csv", "save_csv"]
@@ -35,7 +36,9 @@ def save_csv(library: ReachLibrary, path: PathLike) -> None:
     np.savetxt(path, table, fmt=["%d"] * 5 + ["%.17g"] * 6, delimiter=",", header=",".join(CSV_COLUMNS), comments="")
 
 
-def load_csv(path: PathLike, max_len: int = 200, dt: float = BASE_STEP, *, label_field: str = "fear") -> ReachLibrary:
+def load_csv(
+    path: PathLike, max_len: int = 200, dt: float = BASE_STEP, *, label_field: str = "fear", unit: str = "mm"
+) -> ReachLibrary:
     """Load a long-format CSV file written by :func:`save_csv` (see there for the columns).
 
     Columns may come in any order and extra columns are ignored. Movements keep the order of
@@ -53,6 +56,8 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = BASE_STEP, *, label
         Sampling time in seconds (not stored in the file).
     label_field : str
         The column of the fear label (``fear``).
+    unit : {"mm", "cm", "m"}
+        Length unit of ``px, py, pz`` (``vx, vy, vz`` in ``unit``/s), converted to mm.
 
     Returns
     -------
@@ -68,6 +73,7 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = BASE_STEP, *, label
         If the file is empty, lacks a column, or holds non-numeric, non-finite or inconsistent values.
     """
     file = existing_file(path)
+    scale = to_mm(unit, "load_csv: unit")
     table, lines = _read_csv_table(file, label_field)
     bad = ~np.isfinite(table)
     if bad.any():
@@ -101,7 +107,7 @@ def load_csv(path: PathLike, max_len: int = 200, dt: float = BASE_STEP, *, label
             labels[name].append(int(rows_of_movement[0, column]))
         positions.append(rows_of_movement[:, 5:8])
         velocities.append(rows_of_movement[:, 8:11])
-    return library_from_movements(file, velocities, positions, labels, max_len, dt)
+    return library_from_movements(file, velocities, positions, labels, max_len, dt, scale)
 
 
 def _read_csv_table(file: Path, label_field: str) -> tuple[np.ndarray, np.ndarray]:

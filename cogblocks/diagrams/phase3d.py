@@ -31,6 +31,7 @@ from cogblocks.sync import Blender, KuramotoGroup, L2Sync, OrderParameter
 
 __all__ = [
     "MOTION3D_SETS",
+    "chain_summary",
     "phase3d_accuracy",
     "phase_chain",
     "plot_phase3d",
@@ -74,7 +75,8 @@ def phase_chain(
     Parameters
     ----------
     motion : Motion3D
-        The assisted person's trajectory and the reference primitive.
+        The assisted person's trajectory and the reference primitive (or a recording's
+        :class:`~cogblocks.diagrams.recording.RecordedMotion`: ``position`` and ``reference``).
     group : SyncGroup or int
         The other participants (Table 2's group number by default 3, whose frequencies are those
         of arm motion at ~0.5 Hz).
@@ -129,7 +131,13 @@ def run_phase_chain(seed: int = 0, duration: float = 30.0, motion_computer: str 
         ``mean_dev_rad`` / ``max_dev_rad`` (|θ_L2 − θ_L0| once valid) and
         ``avatar_path_mm`` (length of the avatar's path).
     """
-    motion = generate_motion3d(seed, duration=duration)
+    return chain_summary(generate_motion3d(seed, duration=duration), motion_computer)
+
+
+def chain_summary(motion: Any, motion_computer: str = "mean") -> dict[str, Any]:
+    """Run :func:`phase_chain` on ``motion`` (a :class:`Motion3D` or any object with ``position``,
+    ``reference``, ``t`` and ``dt``, such as a recording's :class:`~cogblocks.diagrams.recording.RecordedMotion`)
+    and report what :func:`run_phase_chain` reports."""
     sim = Simulator(
         phase_chain(motion, motion_computer=motion_computer),
         dt=motion.dt,
@@ -138,7 +146,7 @@ def run_phase_chain(seed: int = 0, duration: float = 30.0, motion_computer: str 
     trace = sim.run(n_steps=len(motion.t))
     valid = trace["valid"]
     if not valid.any():
-        raise ValueError(f"the estimator found no complete period in {duration} s of motion")
+        raise ValueError(f"the estimator found no complete period in {motion.t[-1] - motion.t[0]:.2f} s of motion")
     dev = np.abs(wrap_pi(trace["theta_l2"][valid] - trace["theta_l0"][valid]))
     path = np.linalg.norm(np.diff(trace["avatar_p"], axis=0), axis=1).sum()
     return {

@@ -5,7 +5,7 @@ from cogblocks.phase.computer import PhaseComputer
 from cogblocks.phase.customizer import ReferenceCustomizer, customize_reference, kabsch_rotation
 from cogblocks.phase.estimator import PhaseEstimator
 from cogblocks.phase.estimator3d import PhaseEstimator3D
-from cogblocks.phase.offline import hilbert_phase, offline_phase_pca_hilbert
+from cogblocks.phase.offline import hilbert_phase, mean_cycle, offline_phase_pca_hilbert
 from cogblocks.phase.period import PeriodEstimator
 from cogblocks.phase.position import PhasePositionComputer
 
@@ -20,5 +20,6 @@ __all__ = [
     "customize_reference",
     "hilbert_phase",
     "kabsch_rotation",
+    "mean_cycle",
     "offline_phase_pca_hilbert",
 ]

@@ -6,12 +6,13 @@ import math
 
 import numpy as np
 import scipy.signal
+import scipy.stats
 
 from cogblocks.blocks.angles import TWO_PI, wrap_2pi
 from cogblocks.phase.customizer import _as_curve
 from cogblocks.sim.params import finite_number
 
-__all__ = ["hilbert_phase", "offline_phase_pca_hilbert"]
+__all__ = ["hilbert_phase", "mean_cycle", "offline_phase_pca_hilbert"]
 
 
 def hilbert_phase(p: np.ndarray, *, dt: float = 0.01, highpass: float | None = None) -> np.ndarray:
@@ -61,7 +62,7 @@ _PADDED_PASSES = 2
 _PAD_CYCLES = 3
 
 
-def offline_phase_pca_hilbert(positions: np.ndarray) -> np.ndarray:
+def offline_phase_pca_hilbert(positions: np.ndarray, *, anchor: bool = True) -> np.ndarray:
     """Offline phase of a recorded 3D motion: PCA, then the Hilbert phase (section 6.1.3).
 
     The centred positions are projected on their first principal direction and the phase is the
@@ -87,6 +88,11 @@ def offline_phase_pca_hilbert(positions: np.ndarray) -> np.ndarray:
     ----------
     positions : numpy.ndarray, shape (n, 3)
         The whole recording in mm, at a constant sampling rate; at least one full cycle.
+    anchor : bool
+        Set phase 0 at the start of the motion as above (default). False keeps the Hilbert
+        convention, phase 0 at each maximum of the projection on the principal direction: a
+        landmark of the movement itself, the same for people making the same movement in the same
+        frame, so that their phases can be compared (a group's order parameter).
 
     Returns
     -------
@@ -113,10 +119,50 @@ def offline_phase_pca_hilbert(positions: np.ndarray) -> np.ndarray:
         pad = _PAD_CYCLES * c
         padded = np.concatenate([np.tile(signal[:c], _PAD_CYCLES), signal, np.tile(signal[-c:], _PAD_CYCLES)])
         phase = np.unwrap(np.angle(scipy.signal.hilbert(padded)))[pad : pad + len(signal)]
+    if not anchor:
+        return wrap_2pi(phase)
     cycle = _first_cycle(phase, owner)
     k = np.arange(round(cycle))
-    offset = np.angle(np.exp(1j * (TWO_PI * k / cycle - phase[k])).mean())
+    offset = scipy.stats.circmean(TWO_PI * k / cycle - phase[k], high=np.pi, low=-np.pi)
     return wrap_2pi(phase + offset)
+
+
+def mean_cycle(positions: np.ndarray, n_samples: int = 200, *, anchor: bool = True) -> np.ndarray:
+    """A reference motion made from a recording: its mean cycle over its offline phase.
+
+    Samples are binned by their :func:`offline_phase_pca_hilbert` phase into ``n_samples`` equal bins
+    and averaged; a bin no sample fell in is interpolated from its neighbours (circularly). Phase 0
+    is the offline phase's: the start of the motion, as the online estimator counts it, or with
+    ``anchor=False`` the maximum of the projection (see :func:`offline_phase_pca_hilbert`). For a
+    recording without a primitive library, this is the ``reference`` of
+    :class:`~cogblocks.phase.PhaseEstimator3D`.
+
+    Parameters
+    ----------
+    positions : numpy.ndarray, shape (n, 3)
+        The recording at a constant rate, finite, at least one full cycle.
+    n_samples : int
+        Samples of the returned cycle (>= 3).
+    anchor : bool
+        Passed to :func:`offline_phase_pca_hilbert`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_samples, 3)
+        The cycle at the phases ``2π i / n_samples``, in the positions' unit.
+    """
+    x = _as_curve("mean_cycle", "positions", positions, 4)
+    if not (isinstance(n_samples, int) and n_samples >= 3):
+        raise ValueError(f"mean_cycle: n_samples must be an integer >= 3, got {n_samples!r}")
+    bins = np.minimum((offline_phase_pca_hilbert(x, anchor=anchor) / TWO_PI * n_samples).astype(int), n_samples - 1)
+    counts = np.bincount(bins, minlength=n_samples)
+    sums = np.stack([np.bincount(bins, weights=x[:, axis], minlength=n_samples) for axis in range(3)], axis=1)
+    filled = counts > 0
+    centres = np.arange(n_samples)
+    cycle = sums[filled] / counts[filled, None]
+    return np.stack(
+        [np.interp(centres, centres[filled], cycle[:, axis], period=n_samples) for axis in range(3)], axis=1
+    )
 
 
 def _first_cycle(phase: np.ndarray, owner: str) -> float:

@@ -55,7 +55,12 @@ VAL_FRACTION = 0.3
 
 
 def load_library(
-    path: str | os.PathLike, *, label_field: str | None = None, dt: float | None = None, max_len: int = 200
+    path: str | os.PathLike,
+    *,
+    label_field: str | None = None,
+    dt: float | None = None,
+    max_len: int = 200,
+    unit: str | None = None,
 ) -> ReachLibrary:
     """Load a library by its suffix: ``.mat`` (VelocityData), ``.npz`` or ``.csv``.
 
@@ -69,16 +74,19 @@ def load_library(
         Sampling step in seconds (default: the ``.npz`` file's, 0.01 s for ``.mat`` and ``.csv``).
     max_len : int
         Padded samples per movement.
+    unit : {"mm", "cm", "m"}, optional
+        Length unit of the file's positions and velocities (per second), converted to mm (default:
+        an ``.npz`` file's ``unit`` key, mm otherwise).
     """
     suffix = Path(path).suffix.lower()
     if suffix == ".mat":
-        return load_velocity_data_mat(
-            path, max_len, BASE_STEP if dt is None else dt, label_field=label_field or "Condition"
-        )
+        step = BASE_STEP if dt is None else dt
+        return load_velocity_data_mat(path, max_len, step, label_field=label_field or "Condition", unit=unit or "mm")
     if suffix == ".npz":
-        return load_npz(path, label_field=label_field or "fear", dt=dt)
+        return load_npz(path, label_field=label_field or "fear", dt=dt, unit=unit)
     if suffix == ".csv":
-        return load_csv(path, max_len, BASE_STEP if dt is None else dt, label_field=label_field or "fear")
+        step = BASE_STEP if dt is None else dt
+        return load_csv(path, max_len, step, label_field=label_field or "fear", unit=unit or "mm")
     raise ValueError(f"{path}: unknown library format '{suffix}' (expected .mat, .npz or .csv)")
 
 

@@ -379,3 +379,63 @@ def test_a_directory_is_reported_as_a_directory(tmp_path, loader):
     with pytest.raises(IsADirectoryError, match="Is a directory, expected a file") as info:
         loader(folder)
     assert info.value.filename == str(folder)
+
+
+# --- length units ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("unit", "per_mm"), [("m", 1e-3), ("cm", 0.1), ("mm", 1.0)])
+def test_every_loader_converts_the_files_length_unit_to_mm(tmp_path, unit, per_mm):
+    library = generate_reach_library(seed=0, n_subjects=2, n_fear=3, n_no_fear=3)
+    in_unit = ReachLibrary(
+        library.velocity * per_mm,
+        library.position * per_mm,
+        library.length,
+        library.fear,
+        library.subject,
+        library.target,
+        library.dt,
+    )
+    save_npz(in_unit, tmp_path / "lib.npz")
+    save_csv(in_unit, tmp_path / "lib.csv")
+    for loaded in (
+        load_npz(tmp_path / "lib.npz", unit=unit),
+        load_csv(tmp_path / "lib.csv", max_len=library.max_len, unit=unit),
+    ):
+        np.testing.assert_allclose(loaded.position, library.position, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(loaded.velocity, library.velocity, rtol=1e-12, atol=1e-9)
+    v = velocity_of(np.random.default_rng(1), 30)
+    mat = write_mat(tmp_path / "lib.mat", {"P01": struct_array([trial("BASELINE", 1, 0, v * per_mm, 1)])})
+    loaded = load_velocity_data_mat(mat, unit=unit)
+    np.testing.assert_allclose(loaded.velocity[0, :30], v, rtol=1e-12, atol=1e-9)
+
+
+def test_an_npz_archive_may_declare_its_unit(tmp_path):
+    library = generate_reach_library(seed=0, n_subjects=2, n_fear=3, n_no_fear=3)
+    fields = {k: getattr(library, k) for k in ("length", "fear", "subject", "target")}
+    np.savez(
+        tmp_path / "m.npz",
+        velocity=library.velocity / 1000,
+        position=library.position / 1000,
+        dt=library.dt,
+        unit="m",
+        **fields,
+    )
+    np.testing.assert_allclose(load_npz(tmp_path / "m.npz").position, library.position, rtol=1e-12)
+    np.savez(
+        tmp_path / "deg.npz", velocity=library.velocity, position=library.position, dt=library.dt, unit="deg", **fields
+    )
+    with pytest.raises(DataFormatError, match=r"deg\.npz: unit: unit 'deg' is not a length unit"):
+        load_npz(tmp_path / "deg.npz")
+
+
+def test_a_unit_that_is_not_a_length_is_refused_by_every_loader_naming_it(tmp_path):
+    library = generate_reach_library(seed=0, n_subjects=2, n_fear=3, n_no_fear=3)
+    save_npz(library, tmp_path / "lib.npz")
+    save_csv(library, tmp_path / "lib.csv")
+    with pytest.raises(ValueError, match=r"load_npz: unit: unit 'rad' is not a length unit \(allowed: m, cm, mm\)"):
+        load_npz(tmp_path / "lib.npz", unit="rad")
+    with pytest.raises(ValueError, match=r"load_csv: unit: unit 'mm/s' is not a length unit"):
+        load_csv(tmp_path / "lib.csv", unit="mm/s")
+    with pytest.raises(ValueError, match=r"load_velocity_data_mat: unit: unit 'inch' is not a length unit"):
+        load_velocity_data_mat(tmp_path / "lib.csv", unit="inch")

@@ -121,3 +121,17 @@ def test_mat_label_under_another_name(tmp_path):
     mapped = load_library(path, label_field="Fear", dt=0.005)
     # baseline trials are no fear whatever their label; the others keep it
     assert mapped.fear.tolist() == [True, False, False] and mapped.dt == 0.005
+
+
+def test_load_library_converts_the_files_length_unit(library, tmp_path):
+    from cogblocks.data.reach import ReachLibrary
+
+    in_cm = ReachLibrary(
+        library.velocity / 10, library.position / 10, library.length, library.fear, library.subject,
+        library.target, library.dt,
+    )  # fmt: skip
+    save_csv(in_cm, tmp_path / "cm.csv")
+    loaded = load_library(tmp_path / "cm.csv", unit="cm", max_len=library.max_len)
+    np.testing.assert_allclose(loaded.position, library.position, rtol=1e-12, atol=1e-9)
+    with pytest.raises(ValueError, match="unit 'px' is not a length unit"):
+        load_library(tmp_path / "cm.csv", unit="px")
