@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from cogblocks.data.loaders import DataFormatError, _existing_file
+from cogblocks.data.formats import DataFormatError, existing_file
 from cogblocks.data.markers import MarkerRecording
 from cogblocks.data.units import LENGTH_UNITS, to_mm
 
@@ -69,7 +69,7 @@ def load_c3d(
         ``POINT:UNITS`` that is not a length, or lacks a requested marker (the message lists those
         it has).
     """
-    file = _existing_file(path)
+    file = existing_file(path)
     ezc3d = _ezc3d()
     try:
         c3d = ezc3d.c3d(str(file))

@@ -13,13 +13,14 @@ import numpy as np
 
 from cogblocks.data.markers import MarkerRecording
 from cogblocks.data.motion3d import reference_curve
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["group_recording"]
 
 
 def group_recording(
     theta: np.ndarray,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
     *,
     names: Sequence[str] | None = None,
     noise_mm: float = 1.0,

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.interpolate
 
+from cogblocks.sim.timing import BASE_STEP
+
 __all__ = ["MarkerRecording"]
 
 
@@ -76,7 +78,7 @@ class MarkerRecording:
         """True on the samples where marker ``name`` was not seen."""
         return ~np.isfinite(self.marker(name)).all(axis=1)
 
-    def resampled(self, dt: float = 0.01) -> MarkerRecording:
+    def resampled(self, dt: float = BASE_STEP) -> MarkerRecording:
         """The recording on a regular grid ``t[0] + k dt`` that ends at or before its last sample.
 
         Each stretch the marker was seen without a break is interpolated by a cubic spline

@@ -9,9 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from cogblocks.data.loaders import DataFormatError, _library_from_movements
+from cogblocks.data.formats import DataFormatError, library_from_movements
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.data.recordings import load_recording
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["ReachTrial", "library_from_recordings"]
 
@@ -39,7 +40,7 @@ class ReachTrial:
 
 
 def library_from_recordings(
-    trials: Sequence[ReachTrial], marker: str, *, dt: float = 0.01, max_len: int = 200
+    trials: Sequence[ReachTrial], marker: str, *, dt: float = BASE_STEP, max_len: int = 200
 ) -> ReachLibrary:
     """Build a :class:`ReachLibrary` from labelled recorded trials of one marker (the wrist).
 
@@ -74,4 +75,4 @@ def library_from_recordings(
         labels["fear"].append(int(bool(trial.fear)))
         labels["subject"].append(int(trial.subject))
         labels["target"].append(int(trial.target))
-    return _library_from_movements(Path(str(trials[0].path)), velocities, positions, labels, max_len, dt)
+    return library_from_movements(Path(str(trials[0].path)), velocities, positions, labels, max_len, dt)

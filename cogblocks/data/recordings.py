@@ -10,6 +10,7 @@ from cogblocks.data.c3d import load_c3d
 from cogblocks.data.loaders import DataFormatError
 from cogblocks.data.markers import MarkerRecording
 from cogblocks.data.xdf import load_xdf_markers
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["RECORDING_SUFFIXES", "load_recording"]
 
@@ -17,7 +18,7 @@ RECORDING_SUFFIXES = (".c3d", ".xdf")
 
 
 def load_recording(
-    path: str | os.PathLike, markers: Sequence[str] | None = None, *, dt: float = 0.01, unit: str | None = None
+    path: str | os.PathLike, markers: Sequence[str] | None = None, *, dt: float = BASE_STEP, unit: str | None = None
 ) -> MarkerRecording:
     """Read a C3D (:func:`~cogblocks.data.c3d.load_c3d`) or XDF (:func:`~cogblocks.data.xdf.load_xdf_markers`)
     file's markers, resampled onto a grid of step ``dt`` (gaps NaN), positions in mm.

@@ -27,9 +27,10 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from cogblocks.data.loaders import DataFormatError, _existing_file
+from cogblocks.data.formats import DataFormatError, existing_file
 from cogblocks.data.markers import MarkerRecording
 from cogblocks.data.units import to_mm
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["load_xdf_markers", "write_xdf"]
 
@@ -40,7 +41,7 @@ def load_xdf_markers(
     path: str | os.PathLike,
     markers: Sequence[str] | None = None,
     *,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
     unit: str | None = None,
 ) -> MarkerRecording:
     """Read marker positions and events from an XDF file onto one time grid.
@@ -62,7 +63,7 @@ def load_xdf_markers(
         If the file is not XDF, has no marker stream in either layout, lacks a requested marker
         (the message lists those found) or declares a unit that is not a length.
     """
-    file = _existing_file(path)
+    file = existing_file(path)
     try:
         import pyxdf
     except ImportError as error:
