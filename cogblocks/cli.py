@@ -5,10 +5,22 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
-from cogblocks.cli_options import COUNT, DURATION, PLOT_PATH, POLICY, SEED, STEP
+from cogblocks.cli_options import (
+    COUNT,
+    DURATION,
+    PLOT_PATH,
+    POLICY,
+    SEED,
+    STEP,
+    TRACE_PATH,
+    plot_output,
+    print_result,
+    write_output,
+)
+from cogblocks.experiments.amplification_cli import add_amplification_parser
 from cogblocks.experiments.cli import add_sweep_parser
 from cogblocks.live.cli import add_live_parser
 
@@ -18,22 +30,11 @@ __all__ = ["main"]
 # --- output ---------------------------------------------------------------------------------------------
 
 
-def _print_result(result: dict[str, Any], as_json: bool, render: Callable[[dict[str, Any]], str]) -> None:
-    print(json.dumps(result) if as_json else render(result), flush=True)
-
-
-def _plot(path: str | None, draw: Callable[[str], Any]) -> None:
-    """Draw a figure to ``path`` (after the results are printed, so a failure loses none) and say so."""
-    if path:
-        draw(path)
-        print(f"wrote {path}", file=sys.stderr, flush=True)
-
-
 def _run_demo(args: argparse.Namespace) -> int:
-    from cogblocks.diagrams.demo import kuramoto_demo, plot_demo
+    from cogblocks.diagrams.demo import demo_run, plot_demo
 
-    result = kuramoto_demo(duration=args.duration, save_trace=args.save_trace)
-    _print_result(
+    result, trace = demo_run(duration=args.duration)
+    print_result(
         result,
         args.json,
         lambda r: (
@@ -41,13 +42,15 @@ def _run_demo(args: argparse.Namespace) -> int:
             f"time-averaged order parameter {r['r_mean']:.4f}"
         ),
     )
-    _plot(args.plot, lambda path: plot_demo(path, duration=args.duration))
+    if args.save_trace:
+        write_output(args.save_trace, trace.save, "the trace")
+    plot_output(args.plot, lambda path: plot_demo(path, duration=args.duration))
     return 0
 
 
 def _run_sync(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.sync import DEFAULT_MOTIONS, MOTIONS, plot_sync, sync_table
-    from cogblocks.experiments.sync import save_sync_trace
+    from cogblocks.experiments.sync import sync_trace
 
     if args.random is not None:  # every policy unless some are named
         return _run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
@@ -76,9 +79,8 @@ def _run_sync(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result), flush=True)
     if args.save_trace:
-        save_sync_trace(group, motions[0], args.domain, args.save_trace)
-        print(f"wrote {args.save_trace}", file=sys.stderr, flush=True)
-    _plot(args.plot, lambda path: plot_sync(group, motions[0], path, domain=args.domain, **options))
+        write_output(args.save_trace, sync_trace(group, motions[0], args.domain).save, "the trace")
+    plot_output(args.plot, lambda path: plot_sync(group, motions[0], path, domain=args.domain, **options))
     return 0
 
 
@@ -120,8 +122,8 @@ def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
             )
         return "\n".join(lines)
 
-    _print_result(result, args.json, render)
-    _plot(args.plot, lambda path: plot_heldout({**result, "groups": groups}, path))
+    print_result(result, args.json, render)
+    plot_output(args.plot, lambda path: plot_heldout({**result, "groups": groups}, path))
     return 0
 
 
@@ -148,8 +150,8 @@ def _run_phase3d(args: argparse.Namespace) -> int:
             f"|θ_L2 − θ_L0| mean {chain['mean_dev_rad']:.3f} rad, valid from {chain['valid_from_s']:.2f} s"
         )
 
-    _print_result(result, args.json, render)
-    _plot(args.plot, lambda path: plot_phase3d(path, seed=args.seed))
+    print_result(result, args.json, render)
+    plot_output(args.plot, lambda path: plot_phase3d(path, seed=args.seed))
     return 0
 
 
@@ -177,77 +179,8 @@ def _run_phase1d(args: argparse.Namespace) -> int:
         )
         return "\n".join(lines)
 
-    _print_result(result, args.json, render)
-    _plot(args.plot, lambda path: plot_grid(result, path))
-    return 0
-
-
-def _run_amplification(args: argparse.Namespace) -> int:
-    if args.library is not None:
-        return _run_amplification_pipeline(args)
-    from cogblocks.diagrams.amplification import PAPER, plot_amplification, run_amplification
-
-    variants = ("blend", "blend_rl", "optimised") if args.variant is None else tuple(args.variant)
-    result = run_amplification(variants)
-    result["e_des_0"] = run_amplification(variants, e_des=0)  # the other direction: remove fear
-
-    def percent(x: float | None) -> str:
-        return "–" if x is None else f"{100 * x:.0f} %"
-
-    def judged(row: dict[str, Any]) -> str:
-        shares = ", ".join(f"{name} {percent(share)}" for name, share in row["judges"].items())
-        return f"; independent judges: {shares}"
-
-    def render(r: dict[str, Any]) -> str:
-        lines = ["PoP of Amplification: held-out no-fear movements of the synthetic library, made to encode fear"]
-        for name, row in r.items():
-            if name == "e_des_0":
-                continue
-            paper = PAPER.get(name)
-            if paper is None:  # no published figure: the optimised variant
-                lines.append(
-                    f"  {name:>9}: encoded {percent(row['encoded'])}, terminal ok {percent(row['terminal_ok'])}, "
-                    f"final distance {row['final_distance_mm']:.1f} mm, n {row['n']}; CPU time per tick "
-                    f"p50 {row['solve_ms_p50']:.1f} ms, p99 {row['solve_ms_p99']:.1f} ms (per decision p99 "
-                    f"{row['decision_ms_p99']:.1f} ms), fallbacks {row['fallbacks']} of {row['decisions']}"
-                    + judged(row)
-                )
-                continue
-            distance = "–" if paper["final_distance_mm"] is None else f"{paper['final_distance_mm']:.0f} mm"
-            lines.append(
-                f"  {name:>9}: encoded {percent(row['encoded'])} (paper {percent(paper['encoded'])}), "
-                f"terminal ok {percent(row['terminal_ok'])} (paper {percent(paper['terminal_ok'])}), "
-                f"final distance {row['final_distance_mm']:.1f} mm (paper {distance}), "
-                f"n {row['n']} (paper {paper['n']})" + judged(row)
-            )
-        lines.append("Held-out fear movements, fear removed (e_des = 0)")
-        for name, row in r["e_des_0"].items():
-            lines.append(
-                f"  {name:>9}: encoded {percent(row['encoded'])}, terminal ok {percent(row['terminal_ok'])}, "
-                f"n {row['n']}" + judged(row)
-            )
-        return "\n".join(lines)
-
-    _print_result(result, args.json, render)
-    _plot(args.plot, plot_amplification)
-    return 0
-
-
-def _run_amplification_pipeline(args: argparse.Namespace) -> int:
-    from cogblocks.training.pipeline import run_pipeline
-
-    if args.out is None:
-        raise ValueError("--library needs --out DIR for the weights, tables and report")
-    report = run_pipeline(
-        args.library,
-        args.out,
-        seed=args.seed,
-        quick=args.quick,
-        label_field=args.label_field,
-        dt=args.dt,
-        log=lambda line: print(line, file=sys.stderr),
-    )
-    _print_result(report, args.json, lambda r: json.dumps(r["directions"], indent=2))
+    print_result(result, args.json, render)
+    plot_output(args.plot, lambda path: plot_grid(result, path))
     return 0
 
 
@@ -331,23 +264,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _common(phase1d)
     phase1d.set_defaults(handler=_run_phase1d)
 
-    amplification = targets.add_parser(
-        "amplification", help="PoP of Amplification: encode fear in held-out no-fear movements, with and without RL"
-    )
-    amplification.add_argument(
-        "--variant",
-        action="append",
-        choices=("blend", "blend_rl", "optimised"),
-        help="variant(s) to run (default: all three); 'optimised' is the casadi blending; repeatable",
-    )
-    amplification.add_argument("--library", metavar="FILE", help="run the whole chain on FILE (.mat, .npz, .csv)")
-    amplification.add_argument("--out", metavar="DIR", help="with --library: where weights, tables, report go")
-    amplification.add_argument("--quick", action="store_true", help="with --library: short training runs")
-    amplification.add_argument("--seed", type=SEED, default=0, help="with --library: seed of split and training")
-    amplification.add_argument("--label-field", metavar="NAME", help="with --library: the fear label's name")
-    amplification.add_argument("--dt", type=STEP, metavar="SECONDS", help="with --library: the sampling step")
-    _common(amplification)
-    amplification.set_defaults(handler=_run_amplification)
+    add_amplification_parser(targets, _common)
 
     demo = targets.add_parser("demo", help="a Kuramoto group (Table 2, group 3) without L2")
     demo.add_argument(
@@ -366,7 +283,9 @@ def _common(p: argparse.ArgumentParser, trace: bool = False) -> None:
         "--plot", type=PLOT_PATH, metavar="FILE", help="after the results, save a figure to FILE (png, pdf, svg, ...)"
     )
     if trace:
-        p.add_argument("--save-trace", metavar="FILE", help="save the run's trace to FILE (.npz or .parquet)")
+        p.add_argument(
+            "--save-trace", type=TRACE_PATH, metavar="FILE", help="save the run's trace to FILE (.npz or .parquet)"
+        )
 
 
 def _version() -> str:

@@ -69,6 +69,8 @@ def load_library(
     max_len : int
         Padded samples per movement.
     """
+    if Path(path).is_dir():
+        raise ValueError(f"{path} is a folder: give a library file (.mat, .npz or .csv)")
     suffix = Path(path).suffix.lower()
     if suffix == ".mat":
         return load_velocity_data_mat(path, max_len, 0.01 if dt is None else dt, label_field=label_field or "Condition")
