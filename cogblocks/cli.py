@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from cogblocks.cli_options import (
@@ -49,14 +50,15 @@ def _run_demo(args: argparse.Namespace) -> int:
 
 
 def _run_sync(args: argparse.Namespace) -> int:
-    from cogblocks.diagrams.sync import DEFAULT_MOTIONS, MOTIONS, plot_sync, sync_table
+    from cogblocks.diagrams.sync import DEFAULT_MOTION, DEFAULT_MOTIONS, MOTIONS, plot_sync, sync_table
     from cogblocks.experiments.sync import sync_trace
 
     if args.random is not None:  # every policy unless some are named
         return _run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
     if args.split != "test" or args.no_bound or args.thorough_bound or args.max_duration is not None:
         raise ValueError("--split, --no-bound, --thorough-bound and --max-duration apply to --random N only")
-    motions = list(DEFAULT_MOTIONS) if args.policy is None else args.policy
+    # the main job: the published comparison and pop_sync's own default motion computer
+    motions = list(dict.fromkeys([*DEFAULT_MOTIONS, DEFAULT_MOTION])) if args.policy is None else args.policy
     group = 1 if args.group is None else args.group
     if args.save_trace and len(motions) != 1:
         raise ValueError("--save-trace writes one run's trace: give exactly one --policy")
@@ -80,8 +82,19 @@ def _run_sync(args: argparse.Namespace) -> int:
         print(json.dumps(result), flush=True)
     if args.save_trace:
         write_output(args.save_trace, sync_trace(group, motions[0], args.domain).save, "the trace")
-    plot_output(args.plot, lambda path: plot_sync(group, motions[0], path, domain=args.domain, **options))
+    for motion, path in _figure_paths(args.plot, motions).items():  # one figure per policy that ran
+        plot_output(path, lambda path, motion=motion: plot_sync(group, motion, path, domain=args.domain, **options))
     return 0
+
+
+def _figure_paths(path: str | None, motions: list[str]) -> dict[str, str]:
+    """``--plot FILE`` for one policy, ``FILE-<policy>`` (same folder and format) for each of several."""
+    if not path:
+        return {}
+    if len(motions) == 1:
+        return {motions[0]: path}
+    file = Path(path)
+    return {m: str(file.with_name(f"{file.stem}-{m}{file.suffix}")) for m in motions}
 
 
 def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
@@ -221,7 +234,8 @@ def _build_parser() -> argparse.ArgumentParser:
         type=POLICY,
         metavar="NAME",
         help="motion computer(s) to run: dqn, dqn_raw, guard, lookahead, mean, mpc, pace, plan, replan "
-        "(default: dqn, lookahead, mean; with --random every one); repeatable",
+        "(default: dqn, lookahead, mean and pop_sync's default, replan; with --random every one); repeatable; "
+        "with several, --plot FILE draws one figure per policy, FILE-<policy>",
     )
     sync.add_argument(
         "--domain",
