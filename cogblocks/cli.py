@@ -67,18 +67,23 @@ def _run_sync(args: argparse.Namespace) -> int:
         raise ValueError("--save-trace records the group's own run: drop --duration and --seed")
     options = {"duration": args.duration, "seed": args.seed}
     result: dict[str, Any] = {}
-    for row in sync_table(group, motions, args.domain, **options):
-        if not result:  # the first figure: r without L2
-            result = {**row, "results": []}
-            line = f"Group {row['group']}: time-averaged order parameter without L2 {row['r_without']:.4f}"
-        else:
-            result["results"].append(row)
-            line = (
-                f"  with L2, {row['policy']:>10}: {row['r_with']:.4f} ({row['change_pct']:+.2f} %), "
-                f"|θ_L2 − θ_L0| mean {row['mean_dev_rad']:.3f} rad, max {row['max_dev_rad']:.3f} rad"
-            )
-        if not args.json:  # text streams, one line per figure as soon as it is known
-            print(line, flush=True)
+    try:
+        for row in sync_table(group, motions, args.domain, **options):
+            if not result:  # the first figure: r without L2
+                result = {**row, "results": []}
+                line = f"Group {row['group']}: time-averaged order parameter without L2 {row['r_without']:.4f}"
+            else:
+                result["results"].append(row)
+                line = (
+                    f"  with L2, {row['policy']:>10}: {row['r_with']:.4f} ({row['change_pct']:+.2f} %), "
+                    f"|θ_L2 − θ_L0| mean {row['mean_dev_rad']:.3f} rad, max {row['max_dev_rad']:.3f} rad"
+                )
+            if not args.json:  # text streams, one line per figure as soon as it is known
+                print(line, flush=True)
+    except KeyboardInterrupt:  # --json: the figures known so far, marked as such
+        if args.json and result:
+            print(json.dumps({**result, "interrupted": True}), flush=True)
+        raise
     if args.json:
         print(json.dumps(result), flush=True)
     if args.save_trace:

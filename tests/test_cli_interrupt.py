@@ -1,6 +1,7 @@
 """Ctrl-C and SIGTERM stop a long ``cogblocks run sync`` cleanly: the figures so far, one line, 130 or 143,
 no traceback, no worker process left running."""
 
+import json
 import os
 import signal
 import subprocess
@@ -77,3 +78,23 @@ def test_run_sync_random_with_workers_leaves_no_worker_behind(sig, code):
     assert returncode == code
     assert "Traceback" not in err and "cogblocks: interrupted" in err
     assert _gone(children) == []  # every worker ended
+
+
+def test_run_sync_json_interrupted_prints_the_figures_known_so_far(capsys, monkeypatch):
+    """Ctrl-C arriving after the first figure (injected into the real run) still prints that figure as JSON."""
+    from cogblocks.cli import main
+    from cogblocks.diagrams import sync
+
+    real = sync.sync_table
+
+    def interrupted_after_the_first_figure(*args, **kwargs):
+        rows = real(*args, **kwargs)
+        yield next(rows)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sync, "sync_table", interrupted_after_the_first_figure)
+    assert main(["run", "sync", "--group", "1", "--policy", "mean", "--duration", "1", "--json"]) == 130
+    out, err = capsys.readouterr()
+    result = json.loads(out)
+    assert result["interrupted"] is True and result["results"] == [] and 0 < result["r_without"] <= 1
+    assert "cogblocks: interrupted by Ctrl-C" in err
