@@ -4,11 +4,25 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
-from cogblocks.cli_options import COUNT, DURATION, PLOT_PATH, POLICY, SEED, STEP
+from cogblocks.cli_options import (
+    COUNT,
+    DURATION,
+    PLOT_PATH,
+    POLICY,
+    SEED,
+    STEP,
+    TRACE_PATH,
+    plot_output,
+    print_result,
+    write_output,
+)
+from cogblocks.experiments.amplification_cli import add_amplification_parser
 from cogblocks.experiments.cli import add_sweep_parser
 from cogblocks.experiments.recordings_cli import add_analyse_parser, add_recording_options
 from cogblocks.live.cli import add_live_parser
@@ -19,22 +33,11 @@ __all__ = ["main"]
 # --- output ---------------------------------------------------------------------------------------------
 
 
-def _print_result(result: dict[str, Any], as_json: bool, render: Callable[[dict[str, Any]], str]) -> None:
-    print(json.dumps(result) if as_json else render(result), flush=True)
-
-
-def _plot(path: str | None, draw: Callable[[str], Any]) -> None:
-    """Draw a figure to ``path`` (after the results are printed, so a failure loses none) and say so."""
-    if path:
-        draw(path)
-        print(f"wrote {path}", file=sys.stderr, flush=True)
-
-
 def _run_demo(args: argparse.Namespace) -> int:
-    from cogblocks.diagrams.demo import kuramoto_demo, plot_demo
+    from cogblocks.diagrams.demo import demo_run, plot_demo
 
-    result = kuramoto_demo(duration=args.duration, save_trace=args.save_trace)
-    _print_result(
+    result, trace = demo_run(duration=args.duration)
+    print_result(
         result,
         args.json,
         lambda r: (
@@ -42,19 +45,22 @@ def _run_demo(args: argparse.Namespace) -> int:
             f"time-averaged order parameter {r['r_mean']:.4f}"
         ),
     )
-    _plot(args.plot, lambda path: plot_demo(path, duration=args.duration))
+    if args.save_trace:
+        write_output(args.save_trace, trace.save, "the trace")
+    plot_output(args.plot, lambda path: plot_demo(path, duration=args.duration))
     return 0
 
 
 def _run_sync(args: argparse.Namespace) -> int:
-    from cogblocks.diagrams.sync import DEFAULT_MOTIONS, MOTIONS, plot_sync, sync_table
-    from cogblocks.experiments.sync import save_sync_trace
+    from cogblocks.diagrams.sync import DEFAULT_MOTION, DEFAULT_MOTIONS, MOTIONS, plot_sync, sync_table
+    from cogblocks.experiments.sync import sync_trace
 
     if args.random is not None:  # every policy unless some are named
         return _run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
     if args.split != "test" or args.no_bound or args.thorough_bound or args.max_duration is not None:
         raise ValueError("--split, --no-bound, --thorough-bound and --max-duration apply to --random N only")
-    motions = list(DEFAULT_MOTIONS) if args.policy is None else args.policy
+    # the main job: the published comparison and pop_sync's own default motion computer
+    motions = list(dict.fromkeys([*DEFAULT_MOTIONS, DEFAULT_MOTION])) if args.policy is None else args.policy
     group = 1 if args.group is None else args.group
     if args.save_trace and len(motions) != 1:
         raise ValueError("--save-trace writes one run's trace: give exactly one --policy")
@@ -62,25 +68,40 @@ def _run_sync(args: argparse.Namespace) -> int:
         raise ValueError("--save-trace records the group's own run: drop --duration and --seed")
     options = {"duration": args.duration, "seed": args.seed}
     result: dict[str, Any] = {}
-    for row in sync_table(group, motions, args.domain, **options):
-        if not result:  # the first figure: r without L2
-            result = {**row, "results": []}
-            line = f"Group {row['group']}: time-averaged order parameter without L2 {row['r_without']:.4f}"
-        else:
-            result["results"].append(row)
-            line = (
-                f"  with L2, {row['policy']:>10}: {row['r_with']:.4f} ({row['change_pct']:+.2f} %), "
-                f"|θ_L2 − θ_L0| mean {row['mean_dev_rad']:.3f} rad, max {row['max_dev_rad']:.3f} rad"
-            )
-        if not args.json:  # text streams, one line per figure as soon as it is known
-            print(line, flush=True)
+    try:
+        for row in sync_table(group, motions, args.domain, **options):
+            if not result:  # the first figure: r without L2
+                result = {**row, "results": []}
+                line = f"Group {row['group']}: time-averaged order parameter without L2 {row['r_without']:.4f}"
+            else:
+                result["results"].append(row)
+                line = (
+                    f"  with L2, {row['policy']:>10}: {row['r_with']:.4f} ({row['change_pct']:+.2f} %), "
+                    f"|θ_L2 − θ_L0| mean {row['mean_dev_rad']:.3f} rad, max {row['max_dev_rad']:.3f} rad"
+                )
+            if not args.json:  # text streams, one line per figure as soon as it is known
+                print(line, flush=True)
+    except KeyboardInterrupt:  # --json: the figures known so far, marked as such
+        if args.json and result:
+            print(json.dumps({**result, "interrupted": True}), flush=True)
+        raise
     if args.json:
         print(json.dumps(result), flush=True)
     if args.save_trace:
-        save_sync_trace(group, motions[0], args.domain, args.save_trace)
-        print(f"wrote {args.save_trace}", file=sys.stderr, flush=True)
-    _plot(args.plot, lambda path: plot_sync(group, motions[0], path, domain=args.domain, **options))
+        write_output(args.save_trace, sync_trace(group, motions[0], args.domain).save, "the trace")
+    for motion, path in _figure_paths(args.plot, motions).items():  # one figure per policy that ran
+        plot_output(path, lambda path, motion=motion: plot_sync(group, motion, path, domain=args.domain, **options))
     return 0
+
+
+def _figure_paths(path: str | None, motions: list[str]) -> dict[str, str]:
+    """``--plot FILE`` for one policy, ``FILE-<policy>`` (same folder and format) for each of several."""
+    if not path:
+        return {}
+    if len(motions) == 1:
+        return {motions[0]: path}
+    file = Path(path)
+    return {m: str(file.with_name(f"{file.stem}-{m}{file.suffix}")) for m in motions}
 
 
 def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
@@ -121,8 +142,8 @@ def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
             )
         return "\n".join(lines)
 
-    _print_result(result, args.json, render)
-    _plot(args.plot, lambda path: plot_heldout({**result, "groups": groups}, path))
+    print_result(result, args.json, render)
+    plot_output(args.plot, lambda path: plot_heldout({**result, "groups": groups}, path))
     return 0
 
 
@@ -149,8 +170,8 @@ def _run_phase3d(args: argparse.Namespace) -> int:
             f"|θ_L2 − θ_L0| mean {chain['mean_dev_rad']:.3f} rad, valid from {chain['valid_from_s']:.2f} s"
         )
 
-    _print_result(result, args.json, render)
-    _plot(args.plot, lambda path: plot_phase3d(path, seed=args.seed))
+    print_result(result, args.json, render)
+    plot_output(args.plot, lambda path: plot_phase3d(path, seed=args.seed))
     return 0
 
 
@@ -178,77 +199,8 @@ def _run_phase1d(args: argparse.Namespace) -> int:
         )
         return "\n".join(lines)
 
-    _print_result(result, args.json, render)
-    _plot(args.plot, lambda path: plot_grid(result, path))
-    return 0
-
-
-def _run_amplification(args: argparse.Namespace) -> int:
-    if args.library is not None:
-        return _run_amplification_pipeline(args)
-    from cogblocks.diagrams.amplification import PAPER, plot_amplification, run_amplification
-
-    variants = ("blend", "blend_rl", "optimised") if args.variant is None else tuple(args.variant)
-    result = run_amplification(variants)
-    result["e_des_0"] = run_amplification(variants, e_des=0)  # the other direction: remove fear
-
-    def percent(x: float | None) -> str:
-        return "–" if x is None else f"{100 * x:.0f} %"
-
-    def judged(row: dict[str, Any]) -> str:
-        shares = ", ".join(f"{name} {percent(share)}" for name, share in row["judges"].items())
-        return f"; independent judges: {shares}"
-
-    def render(r: dict[str, Any]) -> str:
-        lines = ["PoP of Amplification: held-out no-fear movements of the synthetic library, made to encode fear"]
-        for name, row in r.items():
-            if name == "e_des_0":
-                continue
-            paper = PAPER.get(name)
-            if paper is None:  # no published figure: the optimised variant
-                lines.append(
-                    f"  {name:>9}: encoded {percent(row['encoded'])}, terminal ok {percent(row['terminal_ok'])}, "
-                    f"final distance {row['final_distance_mm']:.1f} mm, n {row['n']}; CPU time per tick "
-                    f"p50 {row['solve_ms_p50']:.1f} ms, p99 {row['solve_ms_p99']:.1f} ms (per decision p99 "
-                    f"{row['decision_ms_p99']:.1f} ms), fallbacks {row['fallbacks']} of {row['decisions']}"
-                    + judged(row)
-                )
-                continue
-            distance = "–" if paper["final_distance_mm"] is None else f"{paper['final_distance_mm']:.0f} mm"
-            lines.append(
-                f"  {name:>9}: encoded {percent(row['encoded'])} (paper {percent(paper['encoded'])}), "
-                f"terminal ok {percent(row['terminal_ok'])} (paper {percent(paper['terminal_ok'])}), "
-                f"final distance {row['final_distance_mm']:.1f} mm (paper {distance}), "
-                f"n {row['n']} (paper {paper['n']})" + judged(row)
-            )
-        lines.append("Held-out fear movements, fear removed (e_des = 0)")
-        for name, row in r["e_des_0"].items():
-            lines.append(
-                f"  {name:>9}: encoded {percent(row['encoded'])}, terminal ok {percent(row['terminal_ok'])}, "
-                f"n {row['n']}" + judged(row)
-            )
-        return "\n".join(lines)
-
-    _print_result(result, args.json, render)
-    _plot(args.plot, plot_amplification)
-    return 0
-
-
-def _run_amplification_pipeline(args: argparse.Namespace) -> int:
-    from cogblocks.training.pipeline import run_pipeline
-
-    if args.out is None:
-        raise ValueError("--library needs --out DIR for the weights, tables and report")
-    report = run_pipeline(
-        args.library,
-        args.out,
-        seed=args.seed,
-        quick=args.quick,
-        label_field=args.label_field,
-        dt=args.dt,
-        log=lambda line: print(line, file=sys.stderr),
-    )
-    _print_result(report, args.json, lambda r: json.dumps(r["directions"], indent=2))
+    print_result(result, args.json, render)
+    plot_output(args.plot, lambda path: plot_grid(result, path))
     return 0
 
 
@@ -289,7 +241,8 @@ def _build_parser() -> argparse.ArgumentParser:
         type=POLICY,
         metavar="NAME",
         help="motion computer(s) to run: dqn, dqn_raw, guard, lookahead, mean, mpc, pace, plan, replan "
-        "(default: dqn, lookahead, mean; with --random every one); repeatable",
+        "(default: dqn, lookahead, mean and pop_sync's default, replan; with --random every one); repeatable; "
+        "with several, --plot FILE draws one figure per policy, FILE-<policy>",
     )
     sync.add_argument(
         "--domain",
@@ -332,23 +285,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _common(phase1d)
     phase1d.set_defaults(handler=_run_phase1d)
 
-    amplification = targets.add_parser(
-        "amplification", help="PoP of Amplification: encode fear in held-out no-fear movements, with and without RL"
-    )
-    amplification.add_argument(
-        "--variant",
-        action="append",
-        choices=("blend", "blend_rl", "optimised"),
-        help="variant(s) to run (default: all three); 'optimised' is the casadi blending; repeatable",
-    )
-    amplification.add_argument("--library", metavar="FILE", help="run the whole chain on FILE (.mat, .npz, .csv)")
-    amplification.add_argument("--out", metavar="DIR", help="with --library: where weights, tables, report go")
-    amplification.add_argument("--quick", action="store_true", help="with --library: short training runs")
-    amplification.add_argument("--seed", type=SEED, default=0, help="with --library: seed of split and training")
-    amplification.add_argument("--label-field", metavar="NAME", help="with --library: the fear label's name")
-    amplification.add_argument("--dt", type=STEP, metavar="SECONDS", help="with --library: the sampling step")
-    _common(amplification)
-    amplification.set_defaults(handler=_run_amplification)
+    add_amplification_parser(targets, _common)
 
     demo = targets.add_parser("demo", help="a Kuramoto group (Table 2, group 3) without L2")
     demo.add_argument(
@@ -368,7 +305,9 @@ def _common(p: argparse.ArgumentParser, trace: bool = False) -> None:
         "--plot", type=PLOT_PATH, metavar="FILE", help="after the results, save a figure to FILE (png, pdf, svg, ...)"
     )
     if trace:
-        p.add_argument("--save-trace", metavar="FILE", help="save the run's trace to FILE (.npz or .parquet)")
+        p.add_argument(
+            "--save-trace", type=TRACE_PATH, metavar="FILE", help="save the run's trace to FILE (.npz or .parquet)"
+        )
 
 
 def _version() -> str:
@@ -388,11 +327,42 @@ def main(argv: Sequence[str] | None = None) -> int:
     if handler is None:
         parser.print_help()
         return 0 if args.command is None else 2
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if _main_thread() else None
     try:
         return handler(args)
     except (ValueError, OSError) as exc:
         print(f"cogblocks: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM through _on_sigterm
+        _stop_workers()
+        by = "SIGTERM" if isinstance(stop, _Terminated) else "Ctrl-C"
+        print(f"cogblocks: interrupted by {by}; the figures above are all that was computed", file=sys.stderr)
+        return 143 if isinstance(stop, _Terminated) else 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is so that it stops as cleanly as on Ctrl-C."""
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    raise _Terminated
+
+
+def _main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+def _stop_workers() -> None:
+    """End joblib's loky worker processes: they outlive an interrupted parallel run otherwise."""
+    loky = sys.modules.get("joblib.externals.loky.reusable_executor")
+    executor = getattr(loky, "_executor", None)
+    if executor is not None:
+        executor.shutdown(wait=True, kill_workers=True)
 
 
 if __name__ == "__main__":

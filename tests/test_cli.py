@@ -2,8 +2,10 @@
 
 import importlib
 import json
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -104,13 +106,16 @@ def test_live_and_sweep_options_are_refused_before_any_run(capsys, argv, option,
 
 
 def test_a_failed_plot_keeps_the_printed_results(capsys, tmp_path):
-    """The figure is drawn after the results are printed: a file system error loses nothing."""
+    """The figure is drawn after the results are printed: a file system error loses nothing, not even the figure."""
     plot = tmp_path / "figure.png"  # valid folder and format, but a link to a folder removed since
     plot.symlink_to(tmp_path / "removed" / "figure.png")
     assert main(["run", "demo", "--duration", "20", "--plot", str(plot)]) == 2
     out, err = capsys.readouterr()
     assert out.startswith("Kuramoto group of 7 (ring, gain 0.6286) over 20.0 s: time-averaged order parameter ")
-    assert "cogblocks: error:" in err and "No such file or directory" in err and "wrote" not in err
+    assert "cogblocks: error:" in err and "No such file or directory" in err and f"wrote {plot}" not in err
+    spare = Path(re.search(r"saved in (\S+\.png) instead", err).group(1))
+    assert spare.read_bytes().startswith(b"\x89PNG")  # the figure is in the temporary file
+    spare.unlink()
 
 
 # --- run sync ---------------------------------------------------------------------------------------------------

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 from importlib import resources
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -21,6 +20,7 @@ from cogblocks.blocks.samples import plausible
 from cogblocks.blocks.specs import COUNT, POSITION, VELOCITY
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, positive_int
+from cogblocks.sim.reading import load_torch
 
 __all__ = [
     "ACTIONS",
@@ -159,7 +159,7 @@ def load_corrector(path: str | os.PathLike | None = None) -> CorrectorNet:
         with resources.as_file(resources.files("cogblocks.data") / "weights" / CORRECTOR_WEIGHTS) as p:
             checkpoint = torch.load(p, weights_only=True)
     else:
-        checkpoint = torch.load(Path(path), weights_only=True)
+        checkpoint = load_torch(path, "corrector checkpoint", keys=("state_dict",))
     network = CorrectorNet()
     network.load_state_dict(checkpoint["state_dict"])
     network.eval()

@@ -6,7 +6,6 @@ import math
 import os
 from functools import lru_cache
 from importlib import resources
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,6 +18,7 @@ from cogblocks.blocks.specs import COUNT
 from cogblocks.data.features import resample_movement
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number
+from cogblocks.sim.reading import load_torch
 
 __all__ = [
     "CLIP_HIGH",
@@ -161,7 +161,7 @@ def _load_checkpoint(path: str | os.PathLike | None) -> dict[str, Any]:
     if path is None:
         with resources.as_file(resources.files("cogblocks.data") / "weights" / ENCODER_WEIGHTS) as p:
             return torch.load(p, weights_only=True)
-    return torch.load(Path(path), weights_only=True)
+    return load_torch(path, "encoder checkpoint", keys=("hidden", "dropout", "state_dict"))
 
 
 def movement_length(velocity: np.ndarray, rest_speed: float) -> int:

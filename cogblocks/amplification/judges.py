@@ -20,7 +20,6 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import resources
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,6 +36,7 @@ from cogblocks.amplification.encoder import (
     movement_length,
     resampling_matrix,
 )
+from cogblocks.sim.reading import load_torch
 
 __all__ = [
     "FEATURES",
@@ -267,7 +267,7 @@ def load_ensemble(name_or_path: str | os.PathLike) -> list[EncoderNet]:
         with resources.as_file(resources.files("cogblocks.data") / "weights" / str(name_or_path)) as p:
             checkpoint = torch.load(p, weights_only=True)
     else:
-        checkpoint = torch.load(Path(name_or_path), weights_only=True)
+        checkpoint = load_torch(name_or_path, "network ensemble checkpoint", keys=("inputs", "hidden", "state_dicts"))
     meta = {k: v for k, v in checkpoint.items() if k != "state_dicts"}
     networks = []
     for state in checkpoint["state_dicts"]:

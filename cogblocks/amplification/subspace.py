@@ -107,7 +107,9 @@ def movement_subspace(library: ReachLibrary, e_des: int, components: int = 8) ->
 
 def load_subspace(path: str | os.PathLike) -> MovementSubspace:
     """A subspace written by :meth:`MovementSubspace.save`."""
-    with np.load(Path(path)) as data:
+    from cogblocks.sim.reading import open_npz
+
+    with open_npz(path, "MovementSubspace") as data:
         missing = {"mean", "components", "explained", "e_des"} - set(data.files)
         if missing:
             raise ValueError(f"{path}: not a MovementSubspace file (missing {', '.join(sorted(missing))})")

@@ -10,7 +10,7 @@ from cogblocks.blocks import Probe
 from cogblocks.sim import Diagram, Simulator, Trace
 from cogblocks.sync import KuramotoGroup, OrderParameter
 
-__all__ = ["kuramoto_demo", "kuramoto_diagram", "plot_demo"]
+__all__ = ["demo_run", "kuramoto_demo", "kuramoto_diagram", "plot_demo"]
 
 # Table 2, group 3 (Alderisio et al. 2017, group 2).
 _OMEGA = [2.7151, 2.9299, 4.0344, 2.1476, 3.9117, 3.7429, 3.2827]
@@ -42,11 +42,17 @@ def kuramoto_demo(duration: float = 300.0, save_trace: str | None = None) -> dic
     Returns ``{"n", "gain", "duration", "r_mean"}``, ``r_mean`` the time-averaged order parameter.
     ``save_trace``: a ``.npz`` or ``.parquet`` file to write the trace to (see :meth:`Trace.save`).
     """
-    d, trace = _simulate(duration)
+    result, trace = demo_run(duration)
     if save_trace:
         trace.save(save_trace)
+    return result
+
+
+def demo_run(duration: float = 300.0) -> tuple[dict[str, Any], Trace]:
+    """:func:`kuramoto_demo`'s figures and the trace they come from."""
+    d, trace = _simulate(duration)
     group = d["group"]
-    return {"n": group.n, "gain": group.gain, "duration": duration, "r_mean": float(trace["r"].mean())}
+    return {"n": group.n, "gain": group.gain, "duration": duration, "r_mean": float(trace["r"].mean())}, trace
 
 
 def plot_demo(path: str, duration: float = 300.0) -> None:

@@ -39,7 +39,9 @@ def _write_fields(value: Any, path: Path) -> None:
 
 def _reader_of_fields(cls: type) -> Callable[[Path], Any]:
     def read(path: Path) -> Any:
-        with np.load(path, allow_pickle=False) as stored:
+        from cogblocks.sim.reading import open_npz
+
+        with open_npz(path, cls.__name__) as stored:
             return cls(**{k: stored[k].item() if stored[k].ndim == 0 else stored[k] for k in stored.files})
 
     return read

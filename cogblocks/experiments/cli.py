@@ -6,7 +6,7 @@ import argparse
 import json
 from typing import Any
 
-from cogblocks.cli_options import COUNT, SEED
+from cogblocks.cli_options import COUNT, SEED, output_type, write_safely
 
 __all__ = ["add_sweep_parser"]
 
@@ -44,7 +44,12 @@ def add_sweep_parser(commands: Any) -> None:
     sync.add_argument("--backend", choices=("loky", "dask", "serial"), default="loky", help="default loky")
     sync.add_argument("--workers", type=COUNT, default=None, help="workers (default: all cores)")
     sync.add_argument("--scheduler", metavar="ADDRESS", help="a dask scheduler address (default: a local cluster)")
-    sync.add_argument("--out", metavar="FILE", help="write every run to FILE (.parquet or .csv)")
+    sync.add_argument(
+        "--out",
+        type=output_type((".parquet", ".csv")),
+        metavar="FILE",
+        help="write every run to FILE (.parquet or .csv)",
+    )
     sync.add_argument("--json", action="store_true", help="print the summary as JSON")
     sync.set_defaults(handler=_sweep_sync)
 
@@ -68,7 +73,7 @@ def _sweep_sync(args: argparse.Namespace) -> int:
         client=args.scheduler,
     )
     if args.out:
-        save_results(df, args.out)
+        write_safely(args.out, lambda path: save_results(df, path), "the sweep's results")
     summary = df.groupby(["group", "policy"], sort=False)[["r_mean", "change_pct"]].mean().reset_index()
     failed = int(df["error"].notna().sum())
     if args.json:

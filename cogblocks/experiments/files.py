@@ -327,7 +327,10 @@ def save_diagram(diagram: Diagram, path: str | Path, *, blocks: Mapping[str, typ
 def load_diagram(path: str | Path, *, blocks: Mapping[str, type] | None = None) -> Diagram:
     """Read a diagram written by :func:`save_diagram`; errors name the file and the block."""
     path = Path(path)
-    text = path.read_text()
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a diagram file (not text: {exc.reason} at byte {exc.start})") from None
     if _is_yaml(path):
         import yaml
 

@@ -110,4 +110,9 @@ def sweep_sync(
 
 def save_sync_trace(group: int, policy: str, domain: str, path: str) -> None:
     """Write the trace of one closed loop of Table 2's ``group`` with ``policy`` (``run sync --save-trace``)."""
-    sync_run(str(group), policy, 0, groups=table2_groups([group]), domain=domain)().save(path)
+    sync_trace(group, policy, domain).save(path)
+
+
+def sync_trace(group: int, policy: str, domain: str) -> Trace:
+    """The trace of one closed loop of Table 2's ``group`` with ``policy``."""
+    return sync_run(str(group), policy, 0, groups=table2_groups([group]), domain=domain)()

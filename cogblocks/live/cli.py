@@ -6,7 +6,7 @@ import argparse
 import json
 from typing import Any
 
-from cogblocks.cli_options import POLICY, STEP
+from cogblocks.cli_options import POLICY, STEP, output_type, write_safely
 from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["add_live_parser"]
@@ -17,7 +17,7 @@ DT = BASE_STEP  # the ready diagrams run at the base step
 def _run_live(args: argparse.Namespace) -> int:
     try:
         from cogblocks.live.ready import LIVE_DIAGRAMS
-        from cogblocks.live.runner import run_realtime
+        from cogblocks.live.runner import run_realtime, save_report
     except ImportError as exc:
         raise ValueError(f'cogblocks live needs the live extra: pip install -e ".[live]" ({exc})') from None
 
@@ -31,16 +31,14 @@ def _run_live(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         return 130
     try:
-        report = run_realtime(
-            compiled, args.duration, 1.0 / DT, record=bool(args.save), record_raw=bool(args.save), save=args.save
-        )
+        report = run_realtime(compiled, args.duration, 1.0 / DT, record=bool(args.save), record_raw=bool(args.save))
     finally:
         for block in compiled.blocks.values():
             if hasattr(block, "close"):
                 block.close()
     result = report.summary()
     if args.json:
-        print(json.dumps(result))
+        print(json.dumps(result), flush=True)
     else:
         stopped = " (stopped by Ctrl-C)" if report.interrupted else ""
         print(
@@ -49,7 +47,9 @@ def _run_live(args: argparse.Namespace) -> int:
             f"p99 {result['tick_ms_p99']:.2f} ms; {result['samples_in']} samples in, {result['samples_out']} out; "
             f"oldest sample used {result['max_age_ms']:.1f} ms"
         )
-        if args.save:
+    if args.save:  # a live session cannot be repeated: if the file fails, the session goes to a temporary file
+        write_safely(args.save, lambda path: save_report(report, path), "the live session")
+        if not args.json:
             print(f"saved the trace and the raw samples to {args.save}")
     return 0
 
@@ -71,7 +71,12 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
         p.add_argument("--duration", type=STEP, required=True, metavar="S", help="seconds to run (Ctrl-C stops)")
         p.add_argument("--timeout", type=STEP, default=5.0, metavar="S", help="seconds to wait for the input stream")
         p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-        p.add_argument("--save", metavar="FILE", help="save the trace and the raw input samples to FILE (.npz)")
+        p.add_argument(
+            "--save",
+            type=output_type((".npz",)),
+            metavar="FILE",
+            help="save the trace and the raw input samples to FILE (.npz)",
+        )
         if name == "sync":
             p.add_argument("--group", type=int, choices=(1, 2, 3), default=1, help="Table 2's group (default 1)")
             p.add_argument(

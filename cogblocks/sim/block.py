@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import inspect
+import itertools
 from collections.abc import Iterator, Mapping
 from typing import Any
 
@@ -18,8 +19,11 @@ __all__ = ["Block"]
 
 _SPEC_FIELDS = ("shape", "dtype", "unit", "wrapped")
 
+# creation order of blocks: messages name a user's newest block first, the likeliest to be at fault
+_CREATED = itertools.count()
 
-def _spec_from(owner: Block, spec: Signal | None, fields: dict[str, Any], defaults: Signal) -> Signal:
+
+def _spec_from(owner: Block, name: str, spec: Signal | None, fields: dict[str, Any], defaults: Signal) -> Signal:
     unknown = set(fields) - set(_SPEC_FIELDS)
     if unknown:
         raise TypeError(f"unknown signal field(s) {sorted(unknown)}; allowed: {list(_SPEC_FIELDS)}")
@@ -30,7 +34,7 @@ def _spec_from(owner: Block, spec: Signal | None, fields: dict[str, Any], defaul
     try:
         return defaults.with_(**fields) if fields else defaults
     except ValueError as exc:  # a bad unit/shape/wrapped given to the block's constructor: say whose
-        raise ValueError(f"{type(owner).__name__}: {exc}") from None
+        raise ValueError(f"{type(owner).__name__}.{name}: {exc}") from None
 
 
 class Block:
@@ -76,6 +80,7 @@ class Block:
         self.period = period
         self.dt: float = 0.0
         self.every: int = 1
+        self._created = next(_CREATED)
 
     # -- declaration ---------------------------------------------------------
     def _check_init(self, name: str) -> None:
@@ -117,7 +122,8 @@ class Block:
             lets feedback loops through the block compile.
         """
         self._check_init(name)
-        port = Input(self, name, _spec_from(self, spec, fields, Signal()), default=default, feedthrough=feedthrough)
+        spec = _spec_from(self, name, spec, fields, Signal())
+        port = Input(self, name, spec, default=default, feedthrough=feedthrough)
         if port.default is not None and port.spec.shape is not None and port.default.shape not in ((), port.spec.shape):
             raise ValueError(
                 f"{type(self).__name__}.{name}: default of shape {port.default.shape} "
@@ -160,7 +166,7 @@ class Block:
                 raise TypeError("give either a spec or like=, not both")
             port = Output(self, name, None, like=like, like_overrides=fields, initial=initial)
         else:
-            resolved = _spec_from(self, spec, fields, Signal())
+            resolved = _spec_from(self, name, spec, fields, Signal())
             if not resolved.concrete:
                 raise ValueError(f"{type(self).__name__}.{name}: an output spec must fix every field, got {resolved}")
             port = Output(self, name, resolved, initial=initial)

@@ -254,19 +254,27 @@ class Diagram(Block):
     def replace(self, path: str, block: Block) -> Block:
         """Swap the block at ``path`` for ``block``, keeping its wires.
 
-        The new block must have the same input and output port names. Returns the
-        block that was replaced.
+        The new block must have every port of the old one that is wired; ports nobody wired
+        (an optional input left at its default, an unread output) may be missing, and a
+        warning names them. Returns the block that was replaced.
         """
         parent_path, _, name = path.rpartition(".")
         parent = self[parent_path] if parent_path else self
         if not isinstance(parent, Diagram) or name not in parent._children:
             raise KeyError(f"no block {path!r} to replace")
         old = parent._children[name]
-        if set(old._inputs) != set(block._inputs) or set(old._outputs) != set(block._outputs):
+        wired_in = {p for _, _, c, p in parent._wires if c == name}
+        wired_in |= {p for targets in parent._exposed_in.values() for c, p in targets if c == name}
+        wired_out = {p for c, p, _, _ in parent._wires if c == name}
+        wired_out |= {p for c, p in parent._exposed_out.values() if c == name}
+        missing = sorted(wired_in - set(block._inputs)) + sorted(wired_out - set(block._outputs))
+        if missing:
             raise DiagramError(
-                f"cannot replace {path!r}: it has inputs {sorted(old._inputs)} and outputs {sorted(old._outputs)}, "
-                f"the new {type(block).__name__} has {sorted(block._inputs)} and {sorted(block._outputs)}"
+                f"cannot replace {path!r}: the new {type(block).__name__} lacks the wired port(s) {missing} "
+                f"(the old block has inputs {sorted(old._inputs)} and outputs {sorted(old._outputs)}, "
+                f"the new one {sorted(block._inputs)} and {sorted(block._outputs)})"
             )
+        dropped = sorted(set(old._inputs) - set(block._inputs)) + sorted(set(old._outputs) - set(block._outputs))
         del parent._children[name]
         object.__setattr__(old, "_parent", None)
         old.name = None
@@ -289,6 +297,13 @@ class Diagram(Block):
                     parent._children[d_child]._inputs[d_port].spec,
                 )
         parent._changed()
+        if dropped:
+            warnings.warn(
+                f"replace({path!r}): the new {type(block).__name__} has no port(s) {dropped} of the old "
+                f"{type(old).__name__}; nothing was wired to them, so they are dropped",
+                UserWarning,
+                stacklevel=2,
+            )
         return old
 
     # -- compiling and running -----------------------------------------------

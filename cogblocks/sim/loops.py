@@ -120,8 +120,10 @@ def _strongly_connected(paths: list[str], deps: Deps) -> list[list[str]]:
     return found
 
 
-def _describe_cycle(comp: list[str], deps: Deps, name: Callable[[Any], str], drivers: dict[Any, Any]) -> str:
-    """One cycle through the loop's blocks, in signal-flow order: ``a.y -> b.u, b.y -> a.u``."""
+def _describe_cycle(
+    comp: list[str], deps: Deps, name: Callable[[Any], str], drivers: dict[Any, Any]
+) -> tuple[str, list[Any]]:
+    """One cycle through the loop's blocks, in signal-flow order (``a.y -> b.u, b.y -> a.u``), and its inputs."""
     inside = set(comp)
     stack = [comp[0]]
     seen = {comp[0]}
@@ -141,18 +143,29 @@ def _describe_cycle(comp: list[str], deps: Deps, name: Callable[[Any], str], dri
         seen.add(src)
         stack.append(src)
     text = [f"{name(drivers[inp])} -> {name(inp)}" for inp in reversed(cycle_inputs)]
-    return ", ".join(text)
+    return ", ".join(text), cycle_inputs
+
+
+def _feedthrough_hint(inputs: list[Any], name: Callable[[Any], str]) -> str:
+    """The loop's inputs, newest block first: one that only ``update`` reads breaks the loop when declared so."""
+    newest = sorted(inputs, key=lambda inp: getattr(inp.block, "_created", -1), reverse=True)
+    listed = ", ".join(f"{name(inp)} ({type(inp.block).__name__})" for inp in newest)
+    return (
+        f"If a block reads one of the loop's inputs only in update(), declare that input with "
+        f"add_input(..., feedthrough=False): {listed} (newest block first)"
+    )
 
 
 def _linear_loop(comp, leaves, drivers, ticks, deps, name) -> LinearLoop:
-    cycle = _describe_cycle(comp, deps, name, drivers)
+    cycle, inputs = _describe_cycle(comp, deps, name, drivers)
     nonlinear = [p for p in comp if leaves[p].linear_feedthrough() is None]
     if nonlinear:
         p = nonlinear[0]
         raise DiagramError(
             f"algebraic loop: {cycle} (every block on it feeds its input straight to its output, and "
             f"{p} ({type(leaves[p]).__name__}) is not linear; only loops of linear feedthrough blocks such as "
-            "Gain, Sum and DiscreteLTI are solved; break it with a UnitDelay)"
+            f"Gain, Sum and DiscreteLTI are solved). {_feedthrough_hint(inputs, name)}; "
+            "otherwise break it with a UnitDelay"
         )
     periods = {ticks[p] for p in comp}
     if len(periods) > 1:

@@ -18,10 +18,12 @@ def _as_shape(shape: Any) -> tuple[int, ...] | None:
         return None
     if isinstance(shape, (int, np.integer)):
         shape = (int(shape),)
-    try:
-        out = tuple(int(s) for s in shape)
-    except TypeError as exc:
-        raise ValueError(f"shape must be a tuple of non-negative ints, got {shape!r}") from exc
+    # a string is iterable and int("3") works: refuse it rather than read "three" letter by letter
+    if isinstance(shape, (str, bytes)) or not hasattr(shape, "__iter__"):
+        raise ValueError(f"shape must be a tuple of non-negative ints, got {shape!r}")
+    if not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) for s in shape):
+        raise ValueError(f"shape must be a tuple of non-negative ints, got {shape!r}")
+    out = tuple(int(s) for s in shape)
     if any(s < 0 for s in out):
         raise ValueError(f"shape must be a tuple of non-negative ints, got {shape!r}")
     return out

@@ -12,6 +12,7 @@ import numpy as np
 from cogblocks.sim.compiled import CompiledDiagram
 from cogblocks.sim.diagram import Diagram
 from cogblocks.sim.errors import DiagramError
+from cogblocks.sim.memory import check_memory
 from cogblocks.sim.timing import BASE_STEP
 from cogblocks.sim.trace import Trace
 
@@ -170,6 +171,12 @@ class Simulator:
         feed = self._feeder(inputs or {}, k0, n)
         n_rec = (n + self.decimate - 1) // self.decimate
         probes = self._probe_arrays()
+        for name, (arr, _) in probes.items():
+            check_memory(
+                n_rec * arr.nbytes,
+                f"probe {name!r} ({arr.size} values over {n_rec} recorded ticks)",
+                "record fewer ticks (Simulator(..., decimate=k) keeps every k-th), a shorter run, or probe less",
+            )
         buffers = {name: np.empty((n_rec,) + arr.shape, dtype=arr.dtype) for name, (arr, _) in probes.items()}
         record = self._recorder(buffers, probes, k0)
         show = self.progress

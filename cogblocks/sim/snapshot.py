@@ -140,11 +140,13 @@ def save_snapshot(state: Mapping[str, Any], path: str | os.PathLike) -> None:
 
 def load_snapshot(path: str | os.PathLike) -> dict[str, Any]:
     """Read a snapshot written by :func:`save_snapshot` (no pickle is ever loaded)."""
-    with np.load(path, allow_pickle=False) as f:
+    from cogblocks.sim.reading import open_npz, parse_json
+
+    with open_npz(path, "cogblocks snapshot") as f:
         if "__manifest__" not in f.files:
             raise ValueError(f"{os.fspath(path)!r} is not a cogblocks snapshot (no manifest)")
-        manifest = json.loads(str(f["__manifest__"]))
-        if manifest.get("format") != _FORMAT or manifest.get("version") != _VERSION:
+        manifest = parse_json(str(f["__manifest__"]), path, "snapshot's manifest")
+        if not isinstance(manifest, dict) or manifest.get("format") != _FORMAT or manifest.get("version") != _VERSION:
             raise ValueError(f"{os.fspath(path)!r} is not a version {_VERSION} cogblocks snapshot")
         blocks = {path_: {"state": {}, "outputs": {}} for path_ in manifest["blocks"]}
         state: dict[str, Any] = {"k": manifest["k"], "blocks": blocks, "inputs": {}}

@@ -123,13 +123,22 @@ class Trace(Mapping[str, np.ndarray]):
         """Read a trace written by :meth:`save` (``.npz`` or ``.parquet``)."""
         path = Path(path)
         if _trace_kind(path) == "npz":
-            with np.load(path, allow_pickle=False) as stored:
+            from cogblocks.sim.reading import open_npz
+
+            with open_npz(path, "cogblocks trace") as stored:
                 meta = _trace_meta(path, str(stored["meta"]) if "meta" in stored.files else None)
                 signals = {name: stored[f"signal{i}"] for i, name in enumerate(meta["signals"])}
                 return cls(stored["t"], signals, meta["units"])
         import pyarrow.parquet as pq
 
-        table = pq.read_table(path)
+        from cogblocks.sim.reading import FileFormatError, existing_file
+
+        try:
+            table = pq.read_table(existing_file(path, "cogblocks trace"))
+        except (OSError, ValueError) as error:  # pyarrow's ArrowInvalid is a ValueError
+            if isinstance(error, (FileNotFoundError, IsADirectoryError, FileFormatError)):
+                raise
+            raise FileFormatError(f"{path}: not a readable cogblocks trace (a Parquet file): {error}") from None
         raw = (table.schema.metadata or {}).get(b"cogblocks")
         meta = _trace_meta(path, None if raw is None else raw.decode())
         t = table.column("t").to_numpy()
@@ -155,7 +164,9 @@ def _trace_kind(path: Path) -> str:
 
 
 def _trace_meta(path: Path, raw: str | None) -> dict[str, Any]:
-    meta = None if raw is None else json.loads(raw)
+    from cogblocks.sim.reading import parse_json
+
+    meta = None if raw is None else parse_json(raw, path, "trace's metadata")
     if not isinstance(meta, dict) or meta.get("format") != _TRACE_FORMAT:
         raise ValueError(f"{path}: not a cogblocks trace (no {_TRACE_FORMAT!r} metadata)")
     return meta

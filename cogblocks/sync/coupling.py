@@ -8,6 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from cogblocks.data.graphs import adjacency_matrix, graph_edges, is_random_graph
+from cogblocks.sim.memory import check_memory
 from cogblocks.sim.params import finite_array
 
 __all__ = ["DENSE_MAX_N", "SPARSE_MAX_DENSITY", "Coupling", "checked_graph", "use_sparse"]
@@ -24,23 +25,42 @@ def use_sparse(n: int, n_edges: int) -> bool:
     return n > DENSE_MAX_N and n_edges <= SPARSE_MAX_DENSITY * n * n
 
 
+def _coupling_bytes(graph: Any, n: int) -> float:
+    """Peak bytes of building a coupling: the N x N matrices drawn on the way, the edge list, the dense form."""
+    if isinstance(graph, str):
+        edges, drawn = (2 * n, 0) if graph == "ring" else (n * (n - 1), 8 * n * n)
+    elif is_random_graph(graph):
+        edges, drawn = float(graph[1]) * n * n, 9 * n * n  # drawn as dense floats and booleans
+    else:
+        edges, drawn = (graph.nnz if sp.issparse(graph) else np.count_nonzero(graph)), 0
+    dense_form = 0 if use_sparse(n, int(edges)) else 16 * n * n  # the matrix and the per-tick differences
+    return drawn + 36 * edges + dense_form  # rows, columns, weights and the CSR copy per edge
+
+
 def checked_graph(owner: object, graph: Any, n: int) -> Any:
     """``graph`` as a valid spec for ``n`` participants (a dense matrix as a finite float array), or ``ValueError``
-    naming ``owner`` and its ``adjacency`` parameter."""
+    naming ``owner`` and its ``adjacency`` parameter, also when the coupling would not fit in memory
+    (:mod:`cogblocks.sim.memory`)."""
     if isinstance(graph, str):
         if graph not in ("ring", "all"):
             raise ValueError(
                 f"{type(owner).__name__}: adjacency must be 'ring', 'all', ('random', p, seed) or an {n}x{n} matrix, "
                 f"got {graph!r}"
             )
-        return graph
+    elif not (is_random_graph(graph) or sp.issparse(graph)):
+        graph = finite_array(owner, "adjacency", graph, shape=(n, n))
+    check_memory(
+        _coupling_bytes(graph, n),
+        f"{type(owner).__name__}: the coupling of N = {n} participants on adjacency "
+        f"{graph if isinstance(graph, (str, tuple)) else type(graph).__name__!r}",
+        "use a sparse graph ('ring', or a scipy.sparse matrix of the links) or fewer participants",
+    )
     if is_random_graph(graph) or sp.issparse(graph):
         try:
             adjacency_matrix(graph, n, sparse=True)
         except ValueError as exc:
             raise ValueError(f"{type(owner).__name__}: adjacency: {exc}") from None
-        return graph
-    return finite_array(owner, "adjacency", graph, shape=(n, n))
+    return graph
 
 
 class Coupling:

@@ -110,9 +110,14 @@ class DQNPolicy:
     @classmethod
     def from_file(cls, path: str | PathLike[str]) -> DQNPolicy:
         """Load a ``state_dict`` saved by :mod:`cogblocks.training.sync_dqn` (either observation)."""
-        state = torch.load(path, map_location="cpu", weights_only=True)
+        from cogblocks.sim.reading import FileFormatError, load_torch
+
+        state = load_torch(path, "DQN policy state dict", keys=("layers.0.weight",))
         network = L3QNetwork(obs_size=state["layers.0.weight"].shape[1])
-        network.load_state_dict(state)
+        try:
+            network.load_state_dict(state)
+        except RuntimeError as error:
+            raise FileFormatError(f"{path}: not a DQN policy of this network: {str(error).splitlines()[0]}") from None
         return cls(network)
 
     @classmethod

@@ -14,9 +14,15 @@ from cogblocks.sim import Block
 from cogblocks.sim.params import finite_array, finite_number, positive_int
 from cogblocks.sync.coupling import Coupling, checked_graph
 
-__all__ = ["KuramotoGroup", "KuramotoOscillator", "ring_adjacency"]
+__all__ = ["MAX_OMEGA", "KuramotoGroup", "KuramotoOscillator", "ring_adjacency"]
 
 _BELOW_TWO_PI = np.nextafter(TWO_PI, 0.0)
+
+#: Largest natural frequency a group accepts, rad/s (about 16 Hz). Voluntary rhythmic limb movement stays
+#: below about 7 Hz (fast finger tapping) and physiological tremor below about 12 Hz, so nothing a person
+#: does is refused; and at the 10 ms base step a phase then moves at most 1 rad per tick, well inside the
+#: 100 Hz sampling's Nyquist limit (pi rad per tick) that a phase estimate needs.
+MAX_OMEGA = 100.0
 
 
 class KuramotoGroup(Block):
@@ -41,7 +47,7 @@ class KuramotoGroup(Block):
     Parameters
     ----------
     omega : array_like
-        Natural frequencies in rad/s, one per participant.
+        Natural frequencies in rad/s, one per participant, within ±:data:`MAX_OMEGA` (100 rad/s).
     gain : float
         Coupling gain, >= 0.
     adjacency : "ring", "all", ("random", p, seed), array_like or scipy.sparse matrix
@@ -78,6 +84,11 @@ class KuramotoGroup(Block):
     ) -> None:
         super().__init__(period=period)
         self.omega0 = finite_array(self, "omega", omega, ndim=1)
+        if np.any(np.abs(self.omega0) > MAX_OMEGA):
+            raise ValueError(
+                f"KuramotoGroup: omega must lie in [-{MAX_OMEGA:g}, {MAX_OMEGA:g}] rad/s (about "
+                f"{MAX_OMEGA / TWO_PI:.0f} Hz, above any human movement), got {np.max(np.abs(self.omega0)):.3g}"
+            )
         n = len(self.omega0)
         if n < 2:
             raise ValueError(f"KuramotoGroup: omega must hold at least 2 frequencies, got {n}")

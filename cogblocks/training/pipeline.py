@@ -78,6 +78,8 @@ def load_library(
         Length unit of the file's positions and velocities (per second), converted to mm (default:
         an ``.npz`` file's ``unit`` key, mm otherwise).
     """
+    if Path(path).is_dir():
+        raise ValueError(f"{path} is a folder: give a library file (.mat, .npz or .csv)")
     suffix = Path(path).suffix.lower()
     if suffix == ".mat":
         step = BASE_STEP if dt is None else dt

@@ -13,6 +13,7 @@ from cogblocks.cli import main
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.loaders import DataFormatError, load_csv, load_npz, save_csv
 from cogblocks.data.reach import generate_reach_library
+from cogblocks.experiments.amplification_cli import _render_pipeline
 from cogblocks.training.judges import BLENDER_KINEMATIC_MEMBERS, BLENDER_MEMBERS
 from cogblocks.training.pipeline import DIRECTIONS, load_library, run_pipeline
 from cogblocks.training.recipe import CHOSEN
@@ -78,6 +79,10 @@ def test_run_pipeline_on_a_renamed_library(library, tmp_path):
     train, val = library.split(0.3, 2)
     assert report["split"] == {"seed": 2, "val_fraction": 0.3, "train": len(train), "held_out": len(val)}
     assert len(report["encoder_cv"]) == 5
+    text = _render_pipeline(report)  # what `run amplification --library` prints without --json
+    assert text.startswith(f"library of {len(library)} movements") and "held-out movements, " in text
+    with pytest.raises(json.JSONDecodeError):
+        json.loads(text)
     encoder = load_encoder(out / "encoder.pt")
     held_out = library.subset(val)
     accuracy = np.mean((encoder.predict(classifier_inputs(held_out)) > 0.5) == held_out.fear)
