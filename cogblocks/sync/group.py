@@ -202,10 +202,17 @@ class KuramotoGroup(Block):
         whatever the phases: the noise is an exogenous input, known to a clairvoyant controller
         (:func:`~cogblocks.analysis.sync_ocp.windowed_control_bound` on a noisy group). Zeros without noise.
         """
+        return self._paths(n_steps, dt)[0]
+
+    def drift_path(self, n_steps: int, dt: float = 0.01) -> np.ndarray:
+        """The frequency drift δ_k (rad/s) in force at each of the first ``n_steps`` ticks: the true ω_i(t) − ω_i."""
+        return self._paths(n_steps, dt)[1]
+
+    def _paths(self, n_steps: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
         n_steps = positive_int(self, "n_steps", n_steps, minimum=0)
-        path = np.zeros((n_steps, self.n))
+        path, drifts = np.zeros((n_steps, self.n)), np.zeros((n_steps, self.n))
         if not self.noisy:
-            return path
+            return path, drifts
         rng = np.random.default_rng()
         rng.bit_generator.state = self._state_init["rng"]
         decay = math.exp(-dt / self.drift_tau)
@@ -215,11 +222,12 @@ class KuramotoGroup(Block):
         draw = np.zeros(2 * self.n)
         for k in range(n_steps):  # the order of _add_noise's operations
             rng.standard_normal(out=draw)
+            drifts[k] = drift
             path[k] = dt * drift
             path[k] += diffusion * draw[: self.n]
             drift *= decay
             drift += kick * draw[self.n :]
-        return path
+        return path, drifts
 
     def _add_noise(self, phase: np.ndarray) -> None:
         """This tick's drift and diffusion; one draw of 2N normals per tick whatever the state (common numbers)."""

@@ -153,7 +153,8 @@ def test_cli_random_on_the_validation_split_without_the_bound(capsys):
     assert "2 random groups (validation split, seed 0)" in capsys.readouterr().out
     assert main(["run", "sync", "--group", "1", "--split", "validation"]) == 2
     assert (
-        "--split, --no-bound, --thorough-bound and --max-duration apply to --random N only" in capsys.readouterr().err
+        "--split, --no-bound, --thorough-bound, --max-duration and --noise apply to --random N only"
+        in capsys.readouterr().err
     )
     assert main([*argv, "--no-bound", "--thorough-bound"]) == 2
     assert "--thorough-bound: not allowed with argument --no-bound" in capsys.readouterr().err
