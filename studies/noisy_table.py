@@ -1,6 +1,6 @@
 """The validation table of docs/explanation/noisy-groups.md from studies/noisy_validation.py's JSON files.
 
-    python studies/noisy_table.py BOUND.json OTHER.json ...   (BOUND.json: a run with --bound)
+python studies/noisy_table.py BOUND.json OTHER.json ...   (BOUND.json: a run with --bound)
 """
 
 from __future__ import annotations
@@ -26,12 +26,17 @@ for run in (bound_run, *others):
         fractions[policy] = float(np.mean((r_with - r_without)[keep] / headroom[keep]))
 bound_change = 100.0 * (r_bound - r_without) / r_without
 mean_gain = changes["mean"].mean()
-print(f"clairvoyant bound: mean change {bound_change.mean():+.2f} %, groups with headroom {(r_bound - r_without > 1e-3).sum()}")
-print("| motion computer | groups where r is lowered | mean change | worst | × the circular mean's gain | of the clairvoyant bound |")
+with_headroom = int((r_bound - r_without > 1e-3).sum())
+print(f"clairvoyant bound: mean change {bound_change.mean():+.2f} %, groups with headroom {with_headroom}")
+print(
+    "| motion computer | groups where r is lowered | mean change | worst | × the circular mean's gain "
+    "| of the clairvoyant bound |"
+)
 print("|---|---|---|---|---|---|")
 for policy, change in changes.items():
     print(
         f"| {policy} | {(change < 0).sum()} / {len(change)} | {change.mean():+.2f} % | {change.min():+.2f} % | "
         f"{change.mean() / mean_gain:.2f} | {fractions[policy]:.2f} |"
     )
-print(f"| clairvoyant bound | – | {bound_change.mean():+.2f} % | {bound_change.min():+.2f} % | {bound_change.mean() / mean_gain:.2f} | 1 |")
+bound_ratio = bound_change.mean() / mean_gain
+print(f"| clairvoyant bound | – | {bound_change.mean():+.2f} % | {bound_change.min():+.2f} % | {bound_ratio:.2f} | 1 |")

@@ -1,7 +1,7 @@
 """Validation runs of the noisy groups (never the test split): one JSON file per call, rows per group.
 
-    python studies/noisy_validation.py OUT.json --policies replan mean dqn guard [--bound] [--noise-free]
-        [--domain position] [--groups 16] [--max-duration 60]
+python studies/noisy_validation.py OUT.json --policies replan mean dqn guard [--bound] [--noise-free]
+    [--domain position] [--groups 16] [--max-duration 60]
 """
 
 from __future__ import annotations
