@@ -23,6 +23,13 @@ phases are left unwrapped), in three stages:
 3. the final ``s`` is turned into θ_ref and re-simulated through the real blocks
    (:func:`resimulate`): that value is returned.
 
+On a noisy group (``SyncGroup.noise``) the search is clairvoyant: the noise draw does not depend on what L2
+does (:class:`~cogblocks.sync.group.KuramotoGroup` draws it per tick whatever the state), so its phase increments
+(:meth:`~cogblocks.sync.group.KuramotoGroup.noise_path`) are a known exogenous input of the model
+(:func:`known_noise_tick_model`), the closed-loop ``mean`` rule on the noisy group is a start too, and the
+re-simulation runs the noisy plant with the same draw. It is the best r found for a controller that knows the
+noise, the yardstick of any controller that does not.
+
 It is a local optimum of the whole-run problem (for moves of one window at a time), started from the best
 of the starts, so it is at least r without L2, ``mean``'s r and the best constant frequency's (up to the
 rounding of the re-simulation); not a proof that no reference does better.
@@ -36,20 +43,22 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cogblocks.analysis.sync_starts import policy_starts, start_references
+from cogblocks.analysis.sync_starts import closed_loop_start, policy_starts, start_references
 from cogblocks.blocks import Playback, Probe, Select, Substitute
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sim import Diagram, Simulator
 from cogblocks.sync.blender import Blender
 from cogblocks.sync.group import KuramotoGroup
 from cogblocks.sync.model import DT, BlenderParams
+from cogblocks.sync.motion import MeanPhaseMotion
 from cogblocks.sync.order import OrderParameter
-from cogblocks.sync.whole_run import CHUNK, alteration_rollout, sweep, sweep_ticks, tick_model
+from cogblocks.sync.whole_run import CHUNK, alteration_rollout, identified_tick_model, sweep, sweep_ticks, tick_model
 
 __all__ = [
     "THOROUGH",
     "alteration_model",
     "alteration_rollout",
+    "known_noise_tick_model",
     "resimulate",
     "windowed_control_bound",
 ]
@@ -65,7 +74,7 @@ def resimulate(
     """
     a, params = _checked(group, adjacency, blender)
     d = Diagram()
-    kuramoto = d.add("group", KuramotoGroup(group.omega, group.gain, adjacency=a, assisted=group.assisted))
+    kuramoto = d.add("group", KuramotoGroup.for_group(group, adjacency=a))
     reference = d.add("reference", Playback(np.mod(theta_ref, 2 * np.pi), unit="rad", wrapped=True))
     select = d.add("select_l0", Select(group.assisted))
     blend = d.add(
@@ -95,6 +104,24 @@ def alteration_model(group: SyncGroup, adjacency: Any = None, blender: BlenderPa
     """The exact discrete model mapped over :data:`CHUNK` ticks, for :func:`alteration_rollout`."""
     a, params = _checked(group, adjacency, blender)
     return tick_model(group, a, params).mapaccum("roll", CHUNK)
+
+
+def known_noise_tick_model(group: SyncGroup, adjacency: np.ndarray, params: BlenderParams, n_steps: int) -> ca.Function:
+    """One tick of the noisy group with its noise draw known: ``(x, s) -> (x_next, r)``, ``x = (θ, λ, k)``.
+
+    Tick ``k`` adds the ``k``-th row of the group plant's :meth:`~cogblocks.sync.group.KuramotoGroup.noise_path`
+    (looked up by the tick counter ``k`` carried in the state) to the noise-free step of
+    :func:`~cogblocks.sync.whole_run.identified_tick_model`, as a frequency offset over the tick.
+    """
+    n = group.n
+    plant = KuramotoGroup.for_group(group, assisted=False, adjacency=adjacency)
+    offsets = plant.noise_path(n_steps + 1, DT) / DT
+    lookup = ca.interpolant("noise", "linear", [np.arange(n_steps + 1, dtype=float)], offsets.ravel())
+    base = identified_tick_model(n, group.assisted, adjacency, params)
+    x, s = ca.MX.sym("x", n + 2), ca.MX.sym("s")
+    omega = ca.DM(np.asarray(group.omega, dtype=float)) + lookup(x[n + 1])
+    x_next, r = base(ca.vertcat(x[: n + 1], omega, group.gain), s)
+    return ca.Function("known_noise_tick", [x, s], [ca.vertcat(x_next[: n + 1], x[n + 1] + 1.0), r])
 
 
 #: ``windowed_control_bound(**THOROUGH)``: every policy start and three more sweeps (windows of 2, 10 and 4 s)
@@ -162,12 +189,18 @@ def windowed_control_bound(
     n_steps = round(duration / DT) + 1
     sweeps = [(window, tail, knot), *(tuple(p) for p in passes)]
     ticks = [sweep_ticks(w, t, k, screen) for w, t, k in sweeps]
-    tick = tick_model(group, a, params)
+    noisy = group.noise is not None
+    tick = known_noise_tick_model(group, a, params, n_steps) if noisy else tick_model(group, a, params)
     roll = tick.mapaccum("roll", CHUNK)
     s, starts, start_ref = start_references(group, a, n_steps, params)
-    x_init = np.r_[np.zeros(group.n), params.lambda_max]
+    x_init = np.r_[np.zeros(group.n), params.lambda_max, [0.0] if noisy else []]
     states, r = alteration_rollout(roll, x_init, s)
-    for name, (s_policy, policy_ref) in policy_starts(group, a, params, duration, pace, guard).items():
+    closed_loop = policy_starts(group, a, params, duration, pace, guard)
+    if noisy:  # the noise-free rules' open-loop alterations are not the mean rule's on the noisy group
+        closed_loop["mean_closed_loop"] = closed_loop_start(
+            group, a, params, n_steps, MeanPhaseMotion(group.n, group.assisted)
+        )
+    for name, (s_policy, policy_ref) in closed_loop.items():
         states_policy, r_policy = alteration_rollout(roll, x_init, s_policy)
         starts[name] = float(r_policy.mean())
         if r_policy.sum() > r.sum():

@@ -57,7 +57,7 @@ def closed_loop_start(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The alteration fractions and θ_ref of the motion computer ``motion`` (a fresh block) in closed loop."""
     d = Diagram()
-    kuramoto = d.add("group", KuramotoGroup(group.omega, group.gain, adjacency=adjacency, assisted=group.assisted))
+    kuramoto = d.add("group", KuramotoGroup.for_group(group, adjacency=adjacency))
     blend = Blender(params.lambda_min, params.lambda_max, params.e_max, params.kappa_up, params.kappa_down)
     l2 = d.add("l2", L2Sync(motion, group.assisted, blend))
     d.connect(kuramoto.theta, l2.theta)

@@ -10,6 +10,7 @@ divided by N again. Group numbers follow Table 2, not Table 3 (whose rows are nu
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -19,7 +20,53 @@ from scipy.sparse.csgraph import connected_components
 
 from cogblocks.data.graphs import adjacency_matrix, is_random_graph, random_graph_params
 
-__all__ = ["SPLITS", "SyncGroup", "TABLE2", "TABLE3_CHANGE_PCT", "locking_gain", "random_groups"]
+__all__ = [
+    "NOISE_RANGES",
+    "SPLITS",
+    "GroupNoise",
+    "SyncGroup",
+    "TABLE2",
+    "TABLE3_CHANGE_PCT",
+    "locking_gain",
+    "random_groups",
+]
+
+
+@dataclass(frozen=True)
+class GroupNoise:
+    """Phase noise and frequency drift of a group's participants (the options of ``KuramotoGroup``).
+
+    Attributes
+    ----------
+    sigma : tuple of float
+        Phase noise σ_i per participant, rad/√s (Euler–Maruyama: ``σ_i √dt ξ`` per step).
+    drift_spread : tuple of float
+        Stationary standard deviation of each frequency's Ornstein–Uhlenbeck drift, as a fraction of ``|ω_i|``.
+    drift_tau : float
+        Time constant of the drift, s.
+    seed : int
+        Seed of the noise draw: the run without L2 and every run with L2 see the same noise.
+    """
+
+    sigma: tuple[float, ...]
+    drift_spread: tuple[float, ...]
+    drift_tau: float
+    seed: int
+
+    def __post_init__(self) -> None:
+        if len(self.sigma) != len(self.drift_spread):
+            raise ValueError(f"GroupNoise: {len(self.sigma)} sigmas for {len(self.drift_spread)} drift spreads")
+        if min(self.sigma + self.drift_spread, default=0.0) < 0 or not self.drift_tau > 0 or self.seed < 0:
+            raise ValueError("GroupNoise: sigma and drift_spread must be >= 0, drift_tau > 0 and seed >= 0")
+
+    def as_dict(self) -> dict[str, Any]:
+        """The parameters as JSON-ready numbers and lists."""
+        return {
+            "sigma": list(self.sigma),
+            "drift_spread": list(self.drift_spread),
+            "drift_tau": self.drift_tau,
+            "seed": self.seed,
+        }
 
 
 @dataclass(frozen=True)
@@ -44,6 +91,8 @@ class SyncGroup:
         Who sees whom (see :mod:`cogblocks.data.graphs`); a ring by default. A matrix (weighted,
         possibly directed, zero diagonal; ``a_ij`` is how strongly i sees j) is stored as a tuple of
         tuples so that the group stays hashable.
+    noise : GroupNoise, optional
+        Phase noise and frequency drift of the participants; None (the default) is the noise-free group.
     """
 
     name: str
@@ -53,10 +102,13 @@ class SyncGroup:
     assisted: int
     duration: float
     graph: Any = "ring"
+    noise: GroupNoise | None = None
 
     def __post_init__(self) -> None:
         if len(self.omega) != self.n:
             raise ValueError(f"{self.name}: {len(self.omega)} frequencies for n = {self.n}")
+        if self.noise is not None and len(self.noise.sigma) != self.n:
+            raise ValueError(f"{self.name}: noise for {len(self.noise.sigma)} participants, n = {self.n}")
         if not 0 <= self.assisted < self.n:
             raise ValueError(f"{self.name}: assisted index {self.assisted} outside 0..{self.n - 1}")
         graph = self.graph
@@ -74,6 +126,18 @@ class SyncGroup:
     def adjacency(self, *, sparse: bool = False) -> Any:
         """The group's adjacency matrix, dense (default) or CSR."""
         return adjacency_matrix(self.graph, self.n, sparse=sparse)
+
+    def plant_options(self) -> dict[str, Any]:
+        """The noise options of ``KuramotoGroup`` for this group (none for a noise-free group)."""
+        if self.noise is None:
+            return {}
+        noise = self.noise
+        return {
+            "noise": noise.sigma,
+            "drift_spread": noise.drift_spread,
+            "drift_tau": noise.drift_tau,
+            "seed": noise.seed,
+        }
 
     @property
     def graph_kind(self) -> str:
@@ -143,6 +207,27 @@ def locking_gain(omega: Any, adjacency: Any) -> float:
 SPLITS: dict[str, int] = {"train": 0, "validation": 1, "test": 2}
 
 
+#: Ranges of :func:`random_groups`' noise: σ_i log-uniform (rad/√s), drift spread uniform per participant
+#: (fraction of |ω_i|), drift time constant uniform per group (s).
+NOISE_RANGES: dict[str, tuple[float, float]] = {
+    "sigma": (0.05, 0.5),
+    "drift_spread": (0.05, 0.15),
+    "drift_tau": (5.0, 20.0),
+}
+
+
+def _random_noise(rng: np.random.Generator, n: int) -> GroupNoise:
+    low, high = NOISE_RANGES["sigma"]
+    sigma = np.exp(rng.uniform(math.log(low), math.log(high), n))
+    spread = rng.uniform(*NOISE_RANGES["drift_spread"], n)
+    return GroupNoise(
+        sigma=tuple(float(x) for x in sigma),
+        drift_spread=tuple(float(x) for x in spread),
+        drift_tau=float(rng.uniform(*NOISE_RANGES["drift_tau"])),
+        seed=int(rng.integers(2**31)),
+    )
+
+
 def _random_group(rng: np.random.Generator, name: str) -> SyncGroup:
     n = int(rng.integers(3, 16))
     kind = ("ring", "all", "random")[int(rng.integers(3))]
@@ -171,7 +256,7 @@ def _random_group(rng: np.random.Generator, name: str) -> SyncGroup:
     )
 
 
-def random_groups(n: int, split: str = "train", seed: int = 0) -> list[SyncGroup]:
+def random_groups(n: int, split: str = "train", seed: int = 0, *, noise: bool = False) -> list[SyncGroup]:
     """``n`` seeded random groups of one split, for training and held-out evaluation.
 
     Group ``i`` of a split is drawn from ``SeedSequence(seed, spawn_key=(SPLITS[split], i))``, so
@@ -185,7 +270,11 @@ def random_groups(n: int, split: str = "train", seed: int = 0) -> list[SyncGroup
     * gain K = ρ K_c with K_c = :func:`locking_gain` of the frequencies on the graph and ρ
       log-uniform in [0.1, 10] (from far below to far above locking);
     * duration log-uniform in [10, 300] s (rounded to 0.1 s);
-    * assisted participant uniform.
+    * assisted participant uniform;
+    * with ``noise``, a :class:`GroupNoise` from a stream of its own (``spawn_key=(split, i, 1)``), so that the
+      noisy group ``i`` is the noise-free group ``i`` (drawn exactly as without ``noise``) plus noise:
+      σ_i log-uniform in [0.05, 0.5] rad/√s, drift spread uniform in [5, 15] % of ``|ω_i|`` per participant,
+      drift time constant uniform in [5, 20] s, and the noise's seed (:data:`NOISE_RANGES`).
 
     Parameters
     ----------
@@ -195,6 +284,8 @@ def random_groups(n: int, split: str = "train", seed: int = 0) -> list[SyncGroup
         Which split.
     seed : int
         Seed of the whole collection.
+    noise : bool
+        Give every group phase noise and frequency drift (noise-free groups by default).
     """
     if split not in SPLITS:
         raise ValueError(f"random_groups: split must be one of {sorted(SPLITS)}, got {split!r}")
@@ -203,5 +294,9 @@ def random_groups(n: int, split: str = "train", seed: int = 0) -> list[SyncGroup
     groups = []
     for i in range(int(n)):
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(SPLITS[split], i)))
-        groups.append(_random_group(rng, f"{split} group {i} (seed {seed})"))
+        group = _random_group(rng, f"{split} group {i} (seed {seed})")
+        if noise:
+            noise_rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(SPLITS[split], i, 1)))
+            group = dataclasses.replace(group, name=f"{group.name}, noisy", noise=_random_noise(noise_rng, group.n))
+        groups.append(group)
     return groups

@@ -205,8 +205,7 @@ def pop_sync(
     one_of("pop_sync", "front_end", front_end, ("lowpass", "kalman"))
     params = _group_of(group)
     d = Diagram()
-    assisted = params.assisted if l2 else None
-    kuramoto = d.add("group", KuramotoGroup(params.omega, params.gain, adjacency=params.graph, assisted=assisted))
+    kuramoto = d.add("group", KuramotoGroup.for_group(params, assisted=l2))
     order = d.add("order", OrderParameter())
     if l2:
         if isinstance(motion, str):

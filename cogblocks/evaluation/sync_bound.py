@@ -87,12 +87,13 @@ def upper_bound(
     policy's closed-loop references as starts, three more sweeps; about 3× the CPU), ``pace`` then being moot.
 
     Each is an r that some reference reaches, so the larger is the tighter; neither is a proof that no
-    reference does better.
+    reference does better. On a noisy group it is the clairvoyant bound (the noise draw known; see
+    :mod:`~cogblocks.analysis.sync_ocp`) and the noise-free scan is left out.
     """
     kw = {"adjacency": adjacency, "duration": duration, "blender": blender}
     search = THOROUGH if thorough else {"pace": pace}
     best = windowed_control_bound(group, max_iter=max_iter, **search, **kw)
-    if adjacency is None:  # the scan simulates the group's own graph
+    if adjacency is None and group.noise is None:  # the scan simulates the group's own graph, noise-free
         scanned = group if duration is None else dataclasses.replace(group, duration=float(duration))
         best = max(best, constant_frequency_scan(scanned, blender))
     return best

@@ -26,7 +26,9 @@ __all__ = ["evaluate_group", "heldout_table", "plot_heldout", "summarise"]
 MIN_HEADROOM = 1e-3
 
 
-def evaluate_group(group: SyncGroup, policies: list[str], bound: bool = True, thorough: bool = False) -> dict[str, Any]:
+def evaluate_group(
+    group: SyncGroup, policies: list[str], bound: bool = True, thorough: bool = False, domain: str = "phase"
+) -> dict[str, Any]:
     """One group: r without L2, the bound, and per policy r with L2, the change and the deviations.
 
     Returns
@@ -35,16 +37,19 @@ def evaluate_group(group: SyncGroup, policies: list[str], bound: bool = True, th
         ``{"name", "n", "graph", "r_without", "r_bound", "results": [...]}`` where ``results`` are
         :func:`run_sync`'s rows plus ``bound_fraction = (r_with − r_without) / (r_bound − r_without)``
         (``None`` without headroom, and ``r_bound`` and every fraction ``None`` with ``bound=False``).
-        ``thorough`` computes the thorough bound (``upper_bound(thorough=True)``, about 3× the CPU).
+        ``thorough`` computes the thorough bound (``upper_bound(thorough=True)``, about 3× the CPU). A noisy
+        group's row also holds ``"noise"`` (:meth:`~cogblocks.data.groups.GroupNoise.as_dict`), and its bound is
+        the clairvoyant one (the noise draw known). ``domain="position"`` runs the policies on phases estimated
+        from arm positions (the bound stays the phase domain's).
     """
-    result = run_sync(group, policies)
+    result = run_sync(group, policies, domain)
     r_without = result["r_without"]
     # without the pace start unless thorough: it would cost as much again
     r_bound = upper_bound(group, pace=False, thorough=thorough) if bound else None
     headroom = -math.inf if r_bound is None else r_bound - r_without
     for row in result["results"]:
         row["bound_fraction"] = (row["r_with"] - r_without) / headroom if headroom > MIN_HEADROOM else None
-    return {
+    row = {
         "name": group.name,
         "n": group.n,
         "graph": group.graph_kind,
@@ -52,6 +57,9 @@ def evaluate_group(group: SyncGroup, policies: list[str], bound: bool = True, th
         "r_bound": r_bound,
         "results": result["results"],
     }
+    if group.noise is not None:
+        row["noise"] = group.noise.as_dict()
+    return row
 
 
 def summarise(rows: list[dict[str, Any]], policies: list[str]) -> list[dict[str, Any]]:
@@ -88,6 +96,8 @@ def heldout_table(
     split: str = "test",
     bound: bool = True,
     thorough: bool = False,
+    noise: bool = False,
+    domain: str = "phase",
 ) -> dict[str, Any]:
     """Evaluate ``policies`` (all of :data:`MOTIONS` by default) on ``n_groups`` groups of ``split`` and ``seed``.
 
@@ -115,11 +125,17 @@ def heldout_table(
     thorough : bool
         The thorough bound instead (:func:`~cogblocks.evaluation.sync_bound.upper_bound` with ``thorough=True``):
         the ``pace`` and default policies' references as starts and four sweeps, about 3× the CPU.
+    noise : bool
+        Noisy groups (``random_groups(..., noise=True)``: phase noise and frequency drift, the same draw with and
+        without L2); the bound is then the clairvoyant one.
+    domain : {"phase", "position"}
+        Where the policies read the phases (see :func:`~cogblocks.diagrams.sync.pop_sync`).
 
     Returns
     -------
     dict
-        ``{"n_groups", "seed", "policies": [summary per policy]}`` (see :func:`summarise`).
+        ``{"n_groups", "seed", "policies": [summary per policy]}`` (see :func:`summarise`); with noisy groups
+        also ``"domain"`` and ``"noise"``, each group's noise parameters in order.
     """
     policies = list(MOTIONS) if policies is None else list(policies)
     unknown = sorted(set(policies) - set(MOTIONS))
@@ -130,20 +146,23 @@ def heldout_table(
     if groups is None:
         if n_groups < 1:
             raise ValueError(f"the number of random groups must be at least 1, got {n_groups}")
-        groups = random_groups(n_groups, split, seed)
+        groups = random_groups(n_groups, split, seed, noise=noise)
     if max_duration is not None:
         if not max_duration > 0:
             raise ValueError(f"max_duration must be positive, got {max_duration}")
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
     if workers == 1:
-        rows = [evaluate_group(group, policies, bound, thorough) for group in groups]
+        rows = [evaluate_group(group, policies, bound, thorough, domain) for group in groups]
     else:
         from joblib import Parallel, delayed
 
         rows = Parallel(n_jobs=workers, backend="loky")(
-            delayed(evaluate_group)(g, policies, bound, thorough) for g in groups
+            delayed(evaluate_group)(g, policies, bound, thorough, domain) for g in groups
         )
     table: dict[str, Any] = {"n_groups": len(groups), "seed": seed, "policies": summarise(rows, policies)}
+    if any(group.noise is not None for group in groups):
+        table["domain"] = domain
+        table["noise"] = [row.get("noise") for row in rows]
     if details:
         table["groups"] = rows
     return table

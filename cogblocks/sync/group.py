@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -11,8 +11,11 @@ from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.blocks.specs import PHASE
 from cogblocks.data.graphs import ring_adjacency
 from cogblocks.sim import Block
-from cogblocks.sim.params import finite_array, finite_number, positive_int
+from cogblocks.sim.params import finite_array, finite_number, positive_int, random_generator
 from cogblocks.sync.coupling import Coupling, checked_graph
+
+if TYPE_CHECKING:
+    from cogblocks.data.groups import SyncGroup
 
 __all__ = ["MAX_OMEGA", "KuramotoGroup", "KuramotoOscillator", "ring_adjacency"]
 
@@ -63,12 +66,33 @@ class KuramotoGroup(Block):
     sparse : bool, optional
         Force the edge-list (True) or the dense (False) coupling; chosen from
         the graph's size and density by default.
+    noise : float or array_like
+        Phase noise σ_i in rad/√s (a number for everyone or one per
+        participant), >= 0: Euler–Maruyama adds ``σ_i √dt ξ_i`` to each step.
+    drift_spread : float or array_like
+        Frequency drift as a fraction of ``|ω_i|``, >= 0: each frequency is
+        ``ω_i + δ_i(t)`` with δ_i an Ornstein–Uhlenbeck process of stationary
+        standard deviation ``drift_spread_i · |ω_i|`` (rad/s), starting at 0
+        (the group's frequencies are the ones at t = 0).
+    drift_tau : float
+        Time constant of the drift in s, > 0 (δ's autocorrelation is
+        ``exp(−lag / drift_tau)``; stepped exactly, not by Euler).
+    seed : int, SeedSequence or Generator
+        Seed of the noise. Each tick draws one fixed vector of 2N standard
+        normals (phase noise, then drift), whatever the phases and inputs, so
+        two blocks with the same seed see the same noise whatever L2 does
+        (common random numbers).
 
     Notes
     -----
     Bad data policy: for that tick, a non-finite frequency is replaced by the
     constructor's ``omega`` and a non-finite θ_L2 by the assisted
     participant's own phase, so the phases stay finite.
+
+    With ``noise`` and ``drift_spread`` both 0 (the default) the block draws
+    nothing and holds no noise state: the plant is the noise-free one, bit for
+    bit. Otherwise its state also holds the generator (``rng``) and the drift
+    (``drift``, rad/s), so a snapshot restores the noise where it was.
     """
 
     def __init__(
@@ -81,6 +105,10 @@ class KuramotoGroup(Block):
         theta0: Any = 0.0,
         sparse: bool | None = None,
         period: float | None = None,
+        noise: Any = 0.0,
+        drift_spread: Any = 0.0,
+        drift_tau: float = 10.0,
+        seed: Any = 0,
     ) -> None:
         super().__init__(period=period)
         self.omega0 = finite_array(self, "omega", omega, ndim=1)
@@ -117,6 +145,43 @@ class KuramotoGroup(Block):
         self.add_state("phase", np.mod(theta0, TWO_PI).astype(float))
         self.add_scratch("_seen", np.zeros(n))  # the phases and pulls of this tick, work buffers
         self.add_scratch("_rate", np.zeros(n))
+        self._init_noise(noise, drift_spread, drift_tau, seed)
+
+    def _per_participant(self, name: str, value: Any) -> np.ndarray:
+        array = finite_array(self, name, value)
+        if array.shape not in ((), (self.n,)) or np.any(array < 0):
+            raise ValueError(
+                f"KuramotoGroup: {name} must be a number >= 0 or {self.n} numbers >= 0, got {np.asarray(value)!r}"
+            )
+        return np.broadcast_to(array, (self.n,)).astype(float)
+
+    def _init_noise(self, noise: Any, drift_spread: Any, drift_tau: float, seed: Any) -> None:
+        self.noise = self._per_participant("noise", noise)
+        self.drift_spread = self._per_participant("drift_spread", drift_spread)
+        self.drift_tau = finite_number(self, "drift_tau", drift_tau, low=0.0)
+        if not self.drift_tau > 0:
+            raise ValueError(f"KuramotoGroup: drift_tau must be > 0 s, got {drift_tau!r}")
+        self.noisy = bool(self.noise.any() or self.drift_spread.any())
+        if self.noisy:
+            self.add_state("rng", random_generator(self, "seed", seed))
+            self.add_state("drift", np.zeros(self.n))
+            self.add_scratch("_draw", np.zeros(2 * self.n))  # the tick's normal draws, a work buffer
+
+    def setup(self) -> None:
+        super().setup()
+        if self.noisy:  # the step's constants, once dt is known
+            decay = math.exp(-self.dt / self.drift_tau)
+            self._decay = decay
+            self._kick = self.drift_spread * np.abs(self.omega0) * math.sqrt(1.0 - decay * decay)
+            self._diffusion = self.noise * math.sqrt(self.dt)
+
+    @classmethod
+    def for_group(cls, group: SyncGroup, *, assisted: bool = True, adjacency: Any = None) -> KuramotoGroup:
+        """The plant of a :class:`~cogblocks.data.groups.SyncGroup`: its frequencies, gain, graph (or
+        ``adjacency``) and noise (``group.plant_options()``), its assisted participant unless ``assisted=False``."""
+        graph = group.graph if adjacency is None else adjacency
+        index = group.assisted if assisted else None
+        return cls(group.omega, group.gain, adjacency=graph, assisted=index, **group.plant_options())
 
     def output(self, k: int) -> None:
         self.theta.value[...] = self.phase
@@ -137,8 +202,53 @@ class KuramotoGroup(Block):
         rate *= self.dt
         phase = self.phase
         phase += rate
+        if self.noisy:
+            self._add_noise(phase)
         np.mod(phase, TWO_PI, out=phase)
         np.minimum(phase, _BELOW_TWO_PI, out=phase)  # np.mod gives 2π for tiny negative values
+
+    def noise_path(self, n_steps: int, dt: float = 0.01) -> np.ndarray:
+        """The noise's phase increments of the first ``n_steps`` ticks from the block's initial noise state.
+
+        Row k is what tick k adds to the phases beyond the noise-free step (``dt δ_k + σ √dt ξ_k``, rad),
+        whatever the phases: the noise is an exogenous input, known to a clairvoyant controller
+        (:func:`~cogblocks.analysis.sync_ocp.windowed_control_bound` on a noisy group). Zeros without noise.
+        """
+        return self._paths(n_steps, dt)[0]
+
+    def drift_path(self, n_steps: int, dt: float = 0.01) -> np.ndarray:
+        """The frequency drift δ_k (rad/s) in force at each of the first ``n_steps`` ticks: the true ω_i(t) − ω_i."""
+        return self._paths(n_steps, dt)[1]
+
+    def _paths(self, n_steps: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        n_steps = positive_int(self, "n_steps", n_steps, minimum=0)
+        path, drifts = np.zeros((n_steps, self.n)), np.zeros((n_steps, self.n))
+        if not self.noisy:
+            return path, drifts
+        rng = np.random.default_rng()
+        rng.bit_generator.state = self._state_init["rng"]
+        decay = math.exp(-dt / self.drift_tau)
+        kick = self.drift_spread * np.abs(self.omega0) * math.sqrt(1.0 - decay * decay)
+        diffusion = self.noise * math.sqrt(dt)
+        drift = np.array(self._state_init["drift"], dtype=float)
+        draw = np.zeros(2 * self.n)
+        for k in range(n_steps):  # the order of _add_noise's operations
+            rng.standard_normal(out=draw)
+            drifts[k] = drift
+            path[k] = dt * drift
+            path[k] += diffusion * draw[: self.n]
+            drift *= decay
+            drift += kick * draw[self.n :]
+        return path, drifts
+
+    def _add_noise(self, phase: np.ndarray) -> None:
+        """This tick's drift and diffusion; one draw of 2N normals per tick whatever the state (common numbers)."""
+        n, draw, drift = self.n, self._draw, self.drift
+        self.rng.standard_normal(out=draw)
+        phase += self.dt * drift
+        phase += self._diffusion * draw[:n]
+        drift *= self._decay
+        drift += self._kick * draw[n:]
 
 
 class KuramotoOscillator(Block):

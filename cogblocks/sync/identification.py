@@ -9,6 +9,14 @@ gives N equations in the N + 1 unknowns ``(ω_1 … ω_N, K)``; :class:`Kuramoto
 information form (``M ← ρ M + HᵀH``, ``b ← ρ b + Hᵀy``) and solves the (N + 1)-dimensional system,
 which is recursive least squares with forgetting factor ρ. At the deliverable's start (all phases equal)
 ``s = 0``, so the frequencies are exact after one tick and K becomes identifiable as the phases spread.
+
+Among people the frequencies drift while the coupling gain stays: ``omega_forgetting`` ρ_ω lets each ω
+random-walk between ticks (the prediction step of a Kalman filter, ``M ← (M⁻¹ + Q)⁻¹`` with Q on ω only),
+so ω is tracked over a memory of about ``dt / (1 − ρ_ω)`` seconds while what the ticks say about K is kept.
+(Scaling the ω rows and columns of M instead would invent information on K along directions the data never
+fixed.) Phase noise of σ rad/√s makes each tick's rate σ / √dt wrong, so ω's error over a memory T is about
+σ / √T: the memory trades that against the drift.
+:func:`~cogblocks.analysis.sync_identification.identification_errors` measures both against the true values.
 """
 
 from __future__ import annotations
@@ -54,6 +62,9 @@ class KuramotoRLS:
         Regularisation of the prior, in equations' worth (keeps the system solvable before K is excited).
     max_rate : float
         A rate |Δθ/dt| above this (rad/s) is an outlier (a spike, a wrap the tracker missed): the tick is skipped.
+    omega_forgetting : float, optional
+        ρ_ω in (0, 1): the frequencies' own forgetting, for drifting frequencies (a random walk of ω between
+        ticks; the module docstring); None: no walk.
     """
 
     def __init__(
@@ -65,10 +76,15 @@ class KuramotoRLS:
         prior_gain: float = 0.0,
         prior_weight: float = 1e-3,
         max_rate: float = 50.0,
+        omega_forgetting: float | None = None,
     ) -> None:
         self.adjacency = np.asarray(adjacency, dtype=float)
         self.n = self.adjacency.shape[0]
         self.forgetting = forgetting
+        if omega_forgetting is not None and not 0.0 < omega_forgetting < 1.0:
+            allowed = "in (0, 1) or None"
+            raise ValueError(f"KuramotoRLS: omega_forgetting must be {allowed}, got {omega_forgetting!r}")
+        self.omega_forgetting = omega_forgetting
         self.max_rate = max_rate
         self.prior = np.r_[np.full(self.n, prior_omega), prior_gain]
         self.prior_weight = prior_weight
@@ -94,6 +110,8 @@ class KuramotoRLS:
         rho = self.forgetting
         self.info *= rho
         self.rhs *= rho
+        if self.omega_forgetting is not None:
+            self._walk_omega()
         self.info[np.arange(self.n), np.arange(self.n)] += 1.0
         self.info[: self.n, self.n] += s
         self.info[self.n, : self.n] += s
@@ -102,6 +120,19 @@ class KuramotoRLS:
         self.rhs[self.n] += s @ rate
         self.count += 1
         return True
+
+    def _walk_omega(self) -> None:
+        """Kalman's prediction for frequencies that random-walk between ticks, in information form: the covariance
+        of ω grows by ``(1 − ρ_ω)²`` (per unit of a tick's measurement variance, so that one equation a tick holds
+        about ``1 / (1 − ρ_ω)`` ticks' worth on each ω), K's does not; the estimate stays where it is."""
+        x = np.linalg.solve(self.info, self.rhs)
+        covariance = np.linalg.inv(self.info)
+        walk = np.arange(self.n)
+        covariance[walk, walk] += (1.0 - self.omega_forgetting) ** 2
+        self.info[...] = np.linalg.inv(covariance)
+        self.info += self.info.T
+        self.info *= 0.5  # symmetric to the rounding, as the information must be
+        self.rhs[...] = self.info @ x
 
     def estimate(self) -> tuple[np.ndarray, float]:
         """The current ``(ω, K)``."""

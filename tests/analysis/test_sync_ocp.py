@@ -8,13 +8,20 @@ import itertools
 import numpy as np
 import pytest
 
-from cogblocks.analysis.sync_ocp import alteration_model, alteration_rollout, resimulate, windowed_control_bound
-from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
+from cogblocks.analysis.sync_ocp import (
+    alteration_model,
+    alteration_rollout,
+    known_noise_tick_model,
+    resimulate,
+    windowed_control_bound,
+)
+from cogblocks.data.groups import TABLE2, GroupNoise, SyncGroup, random_groups
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.evaluation.sync_bound import upper_bound
 from cogblocks.sim import Simulator
 from cogblocks.sync import GuardedPacingMotion
 from cogblocks.sync.model import DT, BlenderParams, SyncModel, order_parameter
+from cogblocks.sync.whole_run import CHUNK
 
 # three participants, far apart in frequency (unlocked): the alteration matters from the first ticks
 GROUP = SyncGroup("tiny", 3, 0.4, (1.0, 3.5, 6.0), 1, 1.0, graph="all")
@@ -106,3 +113,32 @@ def test_bad_arguments():
         windowed_control_bound(GROUP, adjacency=np.zeros((2, 2)))
     with pytest.raises(ValueError, match="adjacency must be 3x3"):
         resimulate(GROUP, np.zeros(5), adjacency=np.zeros((4, 4)))
+
+
+NOISY = dataclasses.replace(
+    GROUP, noise=GroupNoise(sigma=(0.3, 0.1, 0.5), drift_spread=(0.1, 0.15, 0.05), drift_tau=5.0, seed=9)
+)
+
+
+def test_the_known_noise_model_of_any_alteration_is_the_noisy_blocks():
+    """The clairvoyant model (noise draw as a known input) against the noisy plant driven by the same reference."""
+    s = np.random.default_rng(2).uniform(-1.0, 1.0, TICKS)
+    tick = known_noise_tick_model(NOISY, NOISY.adjacency(), BlenderParams(), TICKS)
+    x0 = np.r_[np.zeros(NOISY.n), BlenderParams().lambda_max, 0.0]
+    states, r = alteration_rollout(tick.mapaccum("roll", CHUNK), x0, s)
+    np.testing.assert_array_equal(states[:, -1], np.arange(TICKS))  # the tick counter the lookup reads
+    theta_ref = states[:, NOISY.assisted] + states[:, NOISY.n] * s
+    assert r.mean() == pytest.approx(resimulate(NOISY, theta_ref), abs=1e-9)
+    _, r_free = _roll(GROUP, s)
+    assert abs(r.mean() - r_free.mean()) > 1e-3  # the noise matters on this group
+
+
+def test_the_clairvoyant_bound_is_above_the_noisy_policies_and_the_run_without_l2():
+    found = windowed_control_bound(NOISY, pace=False, details=True)
+    assert found["r_model"] == pytest.approx(found["r"], abs=1e-9)
+    without = Simulator(pop_sync(NOISY, l2=False)).run(n_steps=TICKS)["r"].mean()
+    mean_rule = Simulator(pop_sync(NOISY, motion="mean")).run(n_steps=TICKS)["r"].mean()
+    assert found["starts"]["mean_closed_loop"] == pytest.approx(mean_rule, abs=1e-9)
+    assert found["r"] >= max(without, mean_rule) - 1e-9
+    assert upper_bound(NOISY, pace=False) == pytest.approx(found["r"], abs=1e-12)  # no noise-free scan mixed in
+    assert found["r"] != pytest.approx(windowed_control_bound(GROUP, pace=False), abs=1e-4)

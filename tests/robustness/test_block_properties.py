@@ -559,6 +559,9 @@ def kuramoto_group(draw):
         adjacency="ring" if draw(st.booleans()) else (rng.random((n, n)) < 0.5).astype(float),
         assisted=draw(st.none() | st.integers(0, n - 1)),
         theta0=rng.uniform(0, TWO_PI, n),
+        noise=draw(st.sampled_from([0.0, 0.3])),  # the noisy plant keeps the same bad-data policy
+        drift_spread=draw(st.sampled_from([0.0, 0.1])),
+        seed=draw(seeds),
     )
 
 

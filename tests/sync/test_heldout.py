@@ -153,7 +153,8 @@ def test_cli_random_on_the_validation_split_without_the_bound(capsys):
     assert "2 random groups (validation split, seed 0)" in capsys.readouterr().out
     assert main(["run", "sync", "--group", "1", "--split", "validation"]) == 2
     assert (
-        "--split, --no-bound, --thorough-bound and --max-duration apply to --random N only" in capsys.readouterr().err
+        "--split, --no-bound, --thorough-bound, --max-duration and --noise apply to --random N only"
+        in capsys.readouterr().err
     )
     assert main([*argv, "--no-bound", "--thorough-bound"]) == 2
     assert "--thorough-bound: not allowed with argument --no-bound" in capsys.readouterr().err
@@ -169,8 +170,8 @@ def test_cli_random_plot_draws_each_groups_change_against_the_bound(capsys, tmp_
     out = json.loads(capsys.readouterr().out)
     assert set(out) == {"n_groups", "seed", "policies"}
     assert path.stat().st_size > 1000 and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert main(["run", "sync", "--random", "2", "--domain", "position"]) == 2
-    assert "--random evaluates each group over its own duration in the phase domain" in capsys.readouterr().err
+    assert main(["run", "sync", "--random", "2", "--duration", "1"]) == 2
+    assert "--random evaluates each group over its own duration" in capsys.readouterr().err
     with pytest.raises(ValueError, match="plot_heldout needs heldout_table"):
         plot_heldout({"n_groups": 2, "seed": 0, "policies": []}, str(path))
 
@@ -187,3 +188,25 @@ def test_thorough_bound_is_the_tighter_yardstick():
     assert row["bound_fraction"] == pytest.approx(
         (row["r_with"] - thorough["r_without"]) / (thorough["r_bound"] - thorough["r_without"])
     )
+
+
+@pytest.mark.parametrize("domain", ["phase", "position"])
+def test_cli_random_noise_json_has_todays_keys_and_each_groups_noise(capsys, domain):
+    argv = ["run", "sync", "--random", "2", "--noise", "--split", "validation", "--max-duration", "1"]
+    assert main([*argv, "--policy", "mean", "--no-bound", "--domain", domain, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"n_groups", "seed", "policies", "domain", "noise"}
+    assert out["domain"] == domain
+    assert out["noise"] == [g.noise.as_dict() for g in random_groups(2, "validation", 0, noise=True)]
+    assert set(out["policies"][0]) >= {"policy", "lowered_share", "mean_change_pct", "worst_change_pct"}
+    assert main(["run", "sync", "--group", "1", "--noise"]) == 2
+    assert "--noise apply to --random N only" in capsys.readouterr().err
+
+
+def test_a_noisy_groups_row_holds_its_noise_and_the_clairvoyant_bound():
+    group = dataclasses.replace(random_groups(1, "validation", 0, noise=True)[0], duration=2.0)
+    row = evaluate_group(group, ["mean"])
+    assert row["noise"] == group.noise.as_dict()
+    assert row["r_bound"] == upper_bound(group, pace=False)
+    assert row["r_bound"] >= row["results"][0]["r_with"] - 1e-9
+    assert "noise" not in evaluate_group(dataclasses.replace(group, noise=None), ["mean"], bound=False)
