@@ -34,7 +34,6 @@ _ENGINE = frozenset(
         "_outputs",
         "_state_init",
         "_scratch",
-        "_parent",
         "name",
         "period",
         "dt",
@@ -254,7 +253,7 @@ def _attributes(block: Block) -> dict[str, Any]:
     for name, value in vars(block).items():
         if name in _ENGINE or name in block.state_names or name in block.scratch_names:
             continue
-        if isinstance(value, (Input, Output)):
+        if isinstance(value, (Input, Output)) or value is block.parent:
             continue
         if type(value).__module__.partition(".")[0] in _PARAMETER_PACKAGES:
             continue

@@ -1,145 +1,132 @@
-"""The noisy group plant: phase noise (Euler–Maruyama), an Ornstein–Uhlenbeck frequency drift, common random numbers."""
-
-from __future__ import annotations
-
-import dataclasses
+"""Kuramoto group, single oscillator and order parameter against a plain NumPy loop."""
 
 import numpy as np
 import pytest
 
-from cogblocks.blocks import Playback, Probe
-from cogblocks.data.groups import random_groups
-from cogblocks.diagrams.sync import pop_sync
+from cogblocks.blocks import Mux, Playback, Probe
 from cogblocks.sim import Diagram, Simulator
-from cogblocks.sync.group import KuramotoGroup
+from cogblocks.sync import KuramotoGroup, KuramotoOscillator, OrderParameter, ring_adjacency
 
-OMEGA = np.array([2.0, 3.5, 4.0, 5.5])
-DT = 0.01
-
-
-def _run(n_steps: int, *, theta_l2: np.ndarray | None = None, **options) -> np.ndarray:
-    """The phases before each tick (n_steps + 1 rows); with ``theta_l2``, participant 1 is assisted and shown it."""
-    d = Diagram()
-    assisted = None if theta_l2 is None else 1
-    group = d.add("group", KuramotoGroup(OMEGA, options.pop("gain", 0.8), assisted=assisted, **options))
-    d.add("theta", Probe())
-    d.connect(group.theta, "theta.u")
-    if theta_l2 is not None:
-        shown = d.add("shown", Playback(theta_l2, unit="rad", wrapped=True))
-        d.connect(shown.y, group.theta_l2)
-    return Simulator(d).run(n_steps=n_steps + 1)["theta"]
+OMEGA = np.array([2.7151, 2.9299, 4.0344, 2.1476, 3.9117, 3.7429, 3.2827])
+GAIN = 4.4 / 7
 
 
-def _increments(theta: np.ndarray, seen: np.ndarray, gain: float) -> np.ndarray:
-    """What each tick added beyond the noise-free Euler step, computed here on the ring (wrapped to (−π, π])."""
-    ring = np.roll(np.eye(len(OMEGA)), 1, axis=1) + np.roll(np.eye(len(OMEGA)), -1, axis=1)
-    pull = (ring * np.sin(seen[:-1, None, :] - seen[:-1, :, None])).sum(axis=2)
-    step = np.diff(theta, axis=0) - DT * (OMEGA + gain * pull)
-    return np.mod(step + np.pi, 2 * np.pi) - np.pi
-
-
-def test_without_noise_the_plant_is_todays_bit_for_bit_and_holds_no_noise_state():
-    plain = KuramotoGroup(OMEGA, 0.8)
-    zero = KuramotoGroup(OMEGA, 0.8, noise=0.0, drift_spread=[0.0] * 4, drift_tau=3.0, seed=7)
-    assert set(zero.state_dict()["state"]) == set(plain.state_dict()["state"]) == {"phase"}
-    np.testing.assert_array_equal(_run(2000), _run(2000, noise=0.0, drift_spread=0.0, seed=7))
-    assert not np.any(zero.noise_path(50))
-
-
-def test_the_noise_is_the_same_whatever_l2_shows_common_random_numbers():
-    """The same seed, two different θ_L2 inputs: each tick's increment beyond the noise-free step (computed here
-    from the phases each participant saw) is the same, and is the block's own noise_path."""
-    gain, n = 0.8, 600
-    options = {"noise": [0.1, 0.3, 0.0, 0.5], "drift_spread": 0.1, "drift_tau": 2.0, "seed": 11}
-    path = KuramotoGroup(OMEGA, gain, **options).noise_path(n)
-    for shown in (np.zeros(n + 1), np.linspace(0.0, 40.0, n + 1)):
-        theta = _run(n, theta_l2=np.mod(shown, 2 * np.pi), gain=gain, **options)
+def numpy_kuramoto(omega, gain, a, n, theta_l2=None, assisted=None, dt=0.01):
+    theta = np.zeros(len(omega))
+    out = np.empty((n, len(omega)))
+    for k in range(n):
+        out[k] = theta
         seen = theta.copy()
-        seen[:, 1] = np.mod(shown, 2 * np.pi)
-        np.testing.assert_allclose(_increments(theta, seen, gain), path, atol=1e-9)
-    assert np.abs(path[:, 2]).max() > 0.0  # participant 2 has no phase noise, but drifts
+        if assisted is not None:
+            seen[assisted] = theta_l2[k]
+        coupling = np.array(
+            [sum(a[i, j] * np.sin(seen[j] - seen[i]) for j in range(len(omega))) for i in range(len(omega))]
+        )
+        theta = np.mod(theta + dt * (omega + gain * coupling), 2 * np.pi)
+    return out
 
 
-def test_another_seed_is_another_draw_and_the_same_seed_the_same():
-    first = KuramotoGroup(OMEGA, 0.8, noise=0.2, seed=1).noise_path(100)
-    np.testing.assert_array_equal(first, KuramotoGroup(OMEGA, 0.8, noise=0.2, seed=1).noise_path(100))
-    assert not np.allclose(first, KuramotoGroup(OMEGA, 0.8, noise=0.2, seed=2).noise_path(100))
+def test_ring_adjacency():
+    a = ring_adjacency(5)
+    assert a.sum(axis=1).tolist() == [2] * 5 and a[0, 4] == a[0, 1] == 1 and a[0, 2] == 0
+    with pytest.raises(ValueError, match="ring_adjacency: n must be an integer >= 2, got 1"):
+        ring_adjacency(1)
 
 
-def test_phase_increments_have_variance_sigma_squared_dt():
-    """Uncoupled, drift-free: the increments are σ_i √dt ξ. 20 000 ticks: the variance's relative standard error
-    is 1 %, the margin 5 %; the means are within 5 standard errors of 0."""
-    sigma = np.array([0.05, 0.2, 0.35, 0.5])
-    n = 20_000
-    theta = _run(n, gain=0.0, noise=sigma, seed=3)
-    step = _increments(theta, theta, 0.0)
-    np.testing.assert_allclose(step.var(axis=0), sigma**2 * DT, rtol=0.05)
-    assert np.all(np.abs(step.mean(axis=0)) < 5 * sigma * np.sqrt(DT / n))
+def test_group_matches_numpy_loop_and_order_parameter():
+    d = Diagram()
+    g = d.add("g", KuramotoGroup(OMEGA, GAIN))
+    o = d.add("o", OrderParameter())
+    d.connect(g.theta, o.theta)
+    tr = Simulator(d, probes=["g.theta", "o.r"]).run(n_steps=3001)
+    ref = numpy_kuramoto(OMEGA, GAIN, ring_adjacency(7), 3001)
+    np.testing.assert_allclose(tr["g.theta"], ref, atol=1e-9)
+    r = np.abs(np.exp(1j * ref).mean(axis=1))
+    np.testing.assert_allclose(tr["o.r"], r, atol=1e-12)
+    assert tr["o.r"][0] == pytest.approx(1.0)
+    assert np.all((tr["g.theta"] >= 0) & (tr["g.theta"] < 2 * np.pi))
 
 
-def test_the_drift_is_an_ou_process_with_its_time_constant_and_spread():
-    """δ_i = increment / dt from the noise path: autocorrelation exp(−lag/τ) at lags τ/2, τ, 2τ, and a stationary
-    standard deviation of spread·|ω_i|. τ = 0.5 s over 3000 s (6000 time constants per participant, 4 pooled)."""
-    tau, spread = 0.5, np.array([0.05, 0.1, 0.1, 0.15])
-    plant = KuramotoGroup(OMEGA, 0.8, drift_spread=spread, drift_tau=tau, seed=5)
-    drift = plant.noise_path(300_000) / DT
-    drift = drift[1000:]  # past the start at 0 (20 time constants)
-    np.testing.assert_allclose(drift.std(axis=0), spread * OMEGA, rtol=0.08)
-    z = (drift - drift.mean(axis=0)) / drift.std(axis=0)
-    for lag_s in (0.25, 0.5, 1.0):
-        lag = round(lag_s / DT)
-        rho = float((z[:-lag] * z[lag:]).mean())
-        assert rho == pytest.approx(np.exp(-lag_s / tau), abs=0.04)
+def test_table3_group3_without_l2_is_061():
+    d = Diagram()
+    g = d.add("g", KuramotoGroup(OMEGA, GAIN))
+    o = d.add("o", OrderParameter())
+    d.connect(g.theta, o.theta)
+    r = Simulator(d, probes=["o.r"]).run(n_steps=30001)["o.r"]
+    assert round(float(r.mean()), 2) == 0.61
 
 
-def test_the_drift_starts_at_the_groups_frequencies():
-    path = KuramotoGroup(OMEGA, 0.8, drift_spread=0.1, seed=5).noise_path(3)
-    assert not np.any(path[0])  # δ(0) = 0: the first tick has no drift and no phase noise here
-    assert np.any(path[1])
+def test_assisted_phase_replaces_own_in_coupling():
+    theta_l2 = np.linspace(0, 6, 200) % (2 * np.pi)
+    d = Diagram()
+    src = d.add("src", Playback(theta_l2, unit="rad", wrapped=True))
+    g = d.add("g", KuramotoGroup(OMEGA, GAIN, assisted=5))
+    d.connect(src.y, g.theta_l2)
+    tr = Simulator(d, probes=["g.theta"]).run(n_steps=200)
+    ref = numpy_kuramoto(OMEGA, GAIN, ring_adjacency(7), 200, theta_l2=theta_l2, assisted=5)
+    np.testing.assert_allclose(tr["g.theta"], ref, atol=1e-9)
 
 
-@pytest.mark.parametrize("via", ["dict", "file"])
-def test_a_restored_noisy_run_continues_bit_for_bit(tmp_path, via):
-    """The generator and the drift are block state: a snapshot, then 300 ticks; restored elsewhere, the same."""
-    group = random_groups(1, "validation", 3, noise=True)[0]
-    sim = Simulator(pop_sync(group, motion="mean"))
-    sim.run(n_steps=250)
-    state = sim.state_dict()
-    assert {"rng", "drift"} <= set(state["blocks"]["group"]["state"])
-    if via == "file":
-        sim.save_state(tmp_path / "snap.npz")
-    first = sim.run(n_steps=300)
-    other = Simulator(pop_sync(group, motion="mean"))
-    other.run(n_steps=17)
-    if via == "file":
-        other.load_state(tmp_path / "snap.npz")
-    else:
-        other.load_state_dict(state)
-    np.testing.assert_array_equal(first["r"], other.run(n_steps=300)["r"])
-    other.reset()  # back to the first draw
-    fresh = Simulator(pop_sync(group, motion="mean")).run(n_steps=250)["r"]
-    np.testing.assert_array_equal(other.run(n_steps=250)["r"], fresh)
+def test_time_varying_frequencies_and_custom_graph():
+    a = np.ones((3, 3)) - np.eye(3)
+    omega_t = np.column_stack([np.linspace(1, 2, 50), np.full(50, 3.0), np.full(50, 0.5)])
+    d = Diagram()
+    src = d.add("src", Playback(omega_t, unit="rad/s"))
+    g = d.add("g", KuramotoGroup([1.0, 3.0, 0.5], 1.0, adjacency=a))
+    d.connect(src.y, g.omega)
+    got = Simulator(d, probes=["g.theta"]).run(n_steps=50)["g.theta"]
+    theta = np.zeros(3)
+    for k in range(50):
+        np.testing.assert_allclose(got[k], theta, atol=1e-12)
+        theta = np.mod(theta + 0.01 * (omega_t[k] + (a * np.sin(theta[None, :] - theta[:, None])).sum(1)), 2 * np.pi)
 
 
-def test_a_noisy_group_in_pop_sync_is_noisy_and_reproducible():
-    group = dataclasses.replace(random_groups(1, "validation", 0, noise=True)[0], duration=1.0)
-    without = Simulator(pop_sync(group, l2=False)).run(n_steps=101)["r"]
-    noise_free = Simulator(pop_sync(dataclasses.replace(group, noise=None), l2=False)).run(n_steps=101)["r"]
-    assert not np.allclose(without, noise_free)
-    again = Simulator(pop_sync(group, l2=False)).run(n_steps=101)["r"]
-    np.testing.assert_array_equal(without, again)
+def test_per_oscillator_diagram_equals_group_block():
+    d = Diagram()
+    osc = [d.add(f"o{i}", KuramotoOscillator(OMEGA[i], GAIN, 2)) for i in range(7)]
+    m = d.add("mux", Mux(7))
+    for i in range(7):
+        d.connect(osc[(i - 1) % 7].theta, osc[i].theta_0)
+        d.connect(osc[(i + 1) % 7].theta, osc[i].theta_1)
+        d.connect(osc[i].theta, getattr(m, f"u{i}"))
+    d.add("p", Probe())
+    d.connect(m.y, "p.u")
+    got = Simulator(d).run(n_steps=500)["p"]
+    np.testing.assert_allclose(got, numpy_kuramoto(OMEGA, GAIN, ring_adjacency(7), 500), atol=1e-9)
+
+
+def test_order_parameter_ignores_non_finite_phases():
+    phases = np.array([[0.0, 0.0, np.nan], [np.nan, np.nan, np.nan], [0.0, np.pi, 0.0]])
+    d = Diagram()
+    src = d.add("src", Playback(phases, unit="rad", wrapped=True))
+    o = d.add("o", OrderParameter())
+    d.connect(src.y, o.theta)
+    r = Simulator(d, probes=["o.r"]).run(n_steps=3)["o.r"]
+    np.testing.assert_allclose(r, [1.0, 1.0, 1 / 3])
 
 
 @pytest.mark.parametrize(
-    ("options", "message"),
+    "kwargs, message",
     [
-        ({"noise": -0.1}, "noise must be a number >= 0 or 4 numbers >= 0"),
-        ({"noise": [0.1, 0.2]}, "noise must be a number >= 0 or 4 numbers >= 0"),
-        ({"drift_spread": [0.1, -0.1, 0.0, 0.0]}, "drift_spread must be a number >= 0"),
-        ({"drift_tau": 0.0}, "drift_tau must be > 0 s"),
-        ({"noise": 0.1, "seed": -1}, "seed must be None, an int >= 0"),
+        (dict(omega=[1.0], gain=1.0), "omega must hold at least 2 frequencies, got 1"),
+        (dict(omega=[1.0, np.inf], gain=1.0), "omega must contain only finite numbers"),
+        (dict(omega=[1.0, 2.0], gain=-1.0), r"gain must be a finite number in \[0.0, inf\), got -1.0"),
+        (dict(omega=[1.0, 2.0], gain=1.0, adjacency=np.ones((3, 3))), r"adjacency must have shape \(2, 2\)"),
+        (
+            dict(omega=[1.0, 2.0], gain=1.0, adjacency="star"),
+            r"adjacency must be 'ring', 'all', \('random', p, seed\) or an 2x2 matrix, got 'star'",
+        ),
+        (dict(omega=[1.0, 2.0], gain=1.0, assisted=2), r"assisted must be a 0-based index in \[0, 1\] or None, got 2"),
     ],
 )
-def test_bad_noise_options_are_refused_by_name(options, message):
-    with pytest.raises(ValueError, match=message):
-        KuramotoGroup(OMEGA, 0.8, **options)
+def test_group_parameter_errors(kwargs, message):
+    with pytest.raises(ValueError, match="KuramotoGroup: " + message):
+        KuramotoGroup(**kwargs)
+
+
+def test_wrapping_never_returns_two_pi():
+    from cogblocks.blocks.angles import wrap_2pi, wrap_angle
+
+    assert wrap_angle(-1e-17) == 0.0 and wrap_2pi(-1e-17) == 0.0
+    out = wrap_2pi(np.array([-1e-17, -0.5, 7.0]))
+    assert np.all((out >= 0) & (out < 2 * np.pi)) and out[0] == 0.0

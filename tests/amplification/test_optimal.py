@@ -14,7 +14,7 @@ from cogblocks.cli import main
 from cogblocks.data.features import resample_movement
 from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, pop_amplification, run_amplification
 from cogblocks.sim import Simulator
-from tests.analysis.optimal_helpers import plain_blender
+from tests.amplification.optimal_helpers import plain_blender
 
 torch.set_num_threads(1)
 FIRST_DECISION = 10  # ΔT: the projector's first decision shows from this tick on

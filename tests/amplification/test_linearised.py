@@ -16,7 +16,7 @@ from cogblocks.amplification.kinematics import plan_features
 from cogblocks.amplification.linearised import LinearisedSolver, box_qp, network_input
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED, blender_networks
-from tests.analysis.optimal_helpers import plain_blender, random_dual
+from tests.amplification.optimal_helpers import plain_blender, random_dual
 
 torch.set_num_threads(1)
 ITERATIONS = 12

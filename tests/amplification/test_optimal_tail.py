@@ -12,7 +12,7 @@ from cogblocks.amplification.plan import library_prediction
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import blender_networks
 from studies.amplification_gap import RecordingBlender
-from tests.analysis.optimal_helpers import PredictionRecorder, eta_i_options, plain_blender
+from tests.amplification.optimal_helpers import PredictionRecorder, eta_i_options, plain_blender
 
 torch.set_num_threads(1)
 

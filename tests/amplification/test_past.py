@@ -14,7 +14,7 @@ from cogblocks.amplification.plan import plan_problem, with_past
 from cogblocks.diagrams.amplification import replay_movement
 from studies.amplification_gap import planned_vs_emitted, summarise
 from studies.amplification_inner import inner_setup
-from tests.analysis.optimal_helpers import options, plain_blender
+from tests.amplification.optimal_helpers import options, plain_blender
 
 torch.set_num_threads(1)
 

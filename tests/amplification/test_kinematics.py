@@ -21,7 +21,7 @@ from cogblocks.amplification.members import kinematic_member
 from cogblocks.amplification.plan import plan_problem
 from cogblocks.diagrams.amplification import amplification_setup
 from cogblocks.diagrams.amplification_setup import CONSTRAINED_MEMBERS, blender_ensembles, blender_networks
-from tests.analysis.optimal_helpers import plain_blender
+from tests.amplification.optimal_helpers import plain_blender
 
 torch.set_num_threads(1)
 DT = 0.01

@@ -10,7 +10,7 @@ from cogblocks.diagrams.amplification import amplification_setup, replay_movemen
 from cogblocks.diagrams.amplification_setup import blender_networks
 from studies.amplification_gap import RecordingBlender, planned_vs_emitted, summarise
 from studies.amplification_inner import inner_setup
-from tests.analysis.optimal_helpers import eta_i_options, plain_blender
+from tests.amplification.optimal_helpers import eta_i_options, plain_blender
 
 torch.set_num_threads(1)
 DT = 0.01

@@ -7,7 +7,7 @@ import torch
 from cogblocks.amplification.linearised import LinearisedRun, LinearisedSolver
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import blender_networks
-from tests.analysis.optimal_helpers import options, plain_blender
+from tests.amplification.optimal_helpers import options, plain_blender
 
 torch.set_num_threads(1)
 

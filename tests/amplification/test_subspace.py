@@ -13,7 +13,7 @@ from cogblocks.amplification.subspace import load_subspace, movement_subspace
 from cogblocks.data.features import classifier_inputs, resample_movement
 from cogblocks.diagrams.amplification import DELTA_POS_MM, amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import OPTIMISED
-from tests.analysis.optimal_helpers import plain_blender, random_dual
+from tests.amplification.optimal_helpers import plain_blender, random_dual
 
 torch.set_num_threads(1)
 

@@ -46,7 +46,7 @@ def test_clean_cosine_converges_to_omega_t(f):
     t = np.arange(1200) * DT
     theta, amp_p, _ = run_estimator(300.0 + 150.0 * np.cos(TWO_PI * f * t), front_end="kalman")
     err = np.abs(wrap_pi(theta - TWO_PI * f * t))
-    # the bound of the low-pass test (tests/blocks/test_phase.py) after two periods; measured
+    # the bound of the low-pass test (tests/phase/test_algorithm1.py) after two periods; measured
     # 0.003-0.02 rad: the Kalman estimates lag a clean cosine by much less than the 3 Hz filter
     assert err[t >= 2.0 / f].max() < 0.05
     np.testing.assert_allclose(amp_p[-1], [150.0, 150.0], rtol=0.02)

@@ -1,5 +1,5 @@
-"""Fixtures shared by ``test_optimal_tail.py`` and ``test_optimal_past.py``. A module defining its own ``setup`` or
-``networks`` (as ``test_optimal_realism.py`` does) uses its own: pytest's override."""
+"""Fixtures shared by ``test_optimal_tail.py`` and ``test_past.py``. A module defining its own ``setup`` or
+``networks`` (as ``test_subspace.py`` does) uses its own: pytest's override."""
 
 import pytest
 

@@ -23,7 +23,7 @@ from cogblocks.diagrams.amplification import amplification_judges, amplification
 from cogblocks.sim import Simulator
 from cogblocks.training.judges import train_judges
 from cogblocks.training.recipe import TrainingRecipe
-from tests.analysis.optimal_helpers import plain_blender
+from tests.amplification.optimal_helpers import plain_blender
 
 torch.set_num_threads(1)
 

@@ -1,6 +1,6 @@
 """Set-up shared by the optimised blender's tests: its options, a recorder of its predictions and random box-QP duals.
 
-Imported as ``tests.analysis.optimal_helpers``: pytest's importlib mode registers ``tests.analysis`` when it
+Imported as ``tests.amplification.optimal_helpers``: pytest's importlib mode registers ``tests.amplification`` when it
 imports a test module of this folder.
 """
 

@@ -11,7 +11,7 @@ from cogblocks.amplification.neighbours import NeighbourPrediction
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.diagrams.amplification import amplification_setup, replay_movement
 from cogblocks.diagrams.amplification_setup import blender_networks
-from tests.analysis.optimal_helpers import PredictionRecorder, options, plain_blender
+from tests.amplification.optimal_helpers import PredictionRecorder, options, plain_blender
 
 torch.set_num_threads(1)
 
