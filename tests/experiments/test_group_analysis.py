@@ -118,3 +118,18 @@ def test_an_occluded_participant_leaves_r_undefined_there_and_the_rest_counts():
     assert result["offline"]["above_chance"]
     defined = ~np.isnan(r)
     np.testing.assert_allclose(r[defined], order_parameter(theta)[defined], atol=0.05)
+
+
+def test_condition_times_are_read_on_the_files_clock_when_it_does_not_start_at_zero(tmp_path):
+    ezc3d = pytest.importorskip("ezc3d")
+    from cogblocks.data.c3d import write_c3d
+
+    rec = group_recording(locked_phases(2, n=3, duration=20.0), seed=2)
+    write_c3d(tmp_path / "late.c3d", rec.points, rec.markers, 100, events=[("a", 1.0), ("b", 11.0)])
+    c3d = ezc3d.c3d(str(tmp_path / "late.c3d"))
+    c3d["header"]["points"]["first_frame"] = 100  # the recording starts at 1 s on the file's clock
+    c3d["header"]["points"]["last_frame"] = 2099
+    c3d.write(str(tmp_path / "late.c3d"))
+    result = analyse_group(tmp_path / "late.c3d", NAMES[:3], online=False)
+    assert result["conditions"]["a"]["duration_s"] == pytest.approx(10.0)
+    assert result["conditions"]["b"]["duration_s"] == pytest.approx(10.0)
