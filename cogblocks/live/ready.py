@@ -33,13 +33,16 @@ def _wire(arch: Block, port_in: str, port_out: str, inlet: LSLInlet, outlet: LSL
     return d
 
 
-def live_phase(in_stream: str, out_stream: str, *, unit: str = "mm", timeout: float = 5.0) -> Diagram:
+def live_phase(
+    in_stream: str, out_stream: str, *, unit: str = "mm", source_unit: str | None = None, timeout: float = 5.0
+) -> Diagram:
     """A 1-channel position stream in, its phase (:class:`~cogblocks.phase.PhaseEstimator`) out.
 
-    The inlet resamples the stream :data:`LAG` s back on the tick grid; the output stream (type
+    The inlet resamples the stream :data:`LAG` s back on the tick grid (converting a stream in m or cm
+    to ``unit``; ``source_unit`` is the unit of a stream that declares none); the output stream (type
     ``"Phase"``) carries ``theta`` in rad, wrapped to ``[0, 2π)``.
     """
-    inlet = LSLInlet(in_stream, unit=unit, mode="interpolate", lag=LAG, timeout=timeout)
+    inlet = LSLInlet(in_stream, unit=unit, source_unit=source_unit, mode="interpolate", lag=LAG, timeout=timeout)
     return _wire(PhaseEstimator(unit=unit), "p", "theta", inlet, LSLOutlet(out_stream, stream_type="Phase"))
 
 
@@ -79,16 +82,26 @@ def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = 
     return _wire(arch, "theta", "theta_l2", inlet, LSLOutlet(out_stream, stream_type="Phase"))
 
 
-def live_l1(in_stream: str, out_stream: str, *, delay: float = 0.1, unit: str = "mm", timeout: float = 5.0) -> Diagram:
+def live_l1(
+    in_stream: str,
+    out_stream: str,
+    *,
+    delay: float = 0.1,
+    unit: str = "mm",
+    source_unit: str | None = None,
+    timeout: float = 5.0,
+) -> Diagram:
     """A 3-channel marker stream in, the L1 avatar's delay-compensated 3D position out.
 
     ``delay`` is how late the stream's samples arrive. The inlet resamples the stream ``delay`` +
     :data:`LAG` s back on the tick grid, and :class:`~cogblocks.sensing.L1` (a constant-acceleration
     Kalman filter on three axes) predicts that far ahead; the output stream (type ``"MoCap"``) has
-    channels ``x``, ``y``, ``z``.
+    channels ``x``, ``y``, ``z``. ``unit`` and ``source_unit`` are as in :func:`live_phase`.
     """
     arch = L1(delay + LAG, estimator=KalmanEstimator("ca", dims=3, unit=unit))
-    inlet = LSLInlet(in_stream, shape=(3,), unit=unit, mode="interpolate", lag=delay + LAG, timeout=timeout)
+    inlet = LSLInlet(
+        in_stream, shape=(3,), unit=unit, source_unit=source_unit, mode="interpolate", lag=delay + LAG, timeout=timeout
+    )
     outlet = LSLOutlet(out_stream, stream_type="MoCap", channel_names=["x", "y", "z"])
     return _wire(arch, "p", "p_avatar", inlet, outlet)
 
