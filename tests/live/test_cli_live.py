@@ -128,3 +128,39 @@ def test_a_missing_input_stream_is_a_clear_error(lsl, stream_name, capsys):
     captured = capsys.readouterr()
     assert code == 2 and captured.out == ""
     assert f"cogblocks: error: inlet: no LSL stream with name '{stream_name}-nobody' found within 0.3 s" in captured.err
+
+
+def test_a_recorded_l1_session_replays_to_the_same_trace_and_json_keys(lsl, streamer, stream_name, tmp_path, capsys):
+    from cogblocks.cli import main
+
+    streamer(f"{stream_name}-m", lambda t: 0.1 * np.sin(2 * np.pi * np.array([0.5, 0.7, 0.9]) * t), 3, unit="m")
+    record, live_npz, replay_npz = tmp_path / "s.xdf", tmp_path / "live.npz", tmp_path / "replay.npz"
+    args = ["--in", f"{stream_name}-m", "--out", f"{stream_name}-av", "--duration", "1.5", "--delay", "0.05"]
+    code = main(["live", "l1", *args, "--record", str(record), "--save", str(live_npz), "--json"])
+    live = json.loads(capsys.readouterr().out)
+    assert code == 0 and record.is_file()
+    # the recorded options (streams, delay) are the defaults of the replay
+    code = main(["replay", str(record), "l1", "--save", str(replay_npz), "--json"])
+    replayed = json.loads(capsys.readouterr().out)
+    assert code == 0 and set(replayed) == set(live)
+    assert replayed["ticks"] == live["ticks"] == 150 and replayed["samples_in"] == live["samples_in"]
+    assert (replayed["late_ticks"], replayed["max_age_ms"]) == (live["late_ticks"], live["max_age_ms"])
+    with np.load(live_npz) as a, np.load(replay_npz) as b:
+        for name in ("t", "p_avatar", "sample", "age_ms", "fresh"):
+            np.testing.assert_array_equal(b[name], a[name], err_msg=name)
+        assert np.nanmax(np.abs(a["sample"])) > 50.0  # mm, converted from the stream's metres
+    # another delay replays the same samples through another diagram
+    assert main(["replay", str(record), "l1", "--delay", "0.02", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["ticks"] == 150
+
+
+def test_the_record_path_is_checked_before_the_run(lsl, stream_name, tmp_path, capsys):
+    from cogblocks.cli import main
+
+    bad = tmp_path / "missing" / "s.xdf"
+    code = main(["live", "phase", "--in", f"{stream_name}-x", "--out", "o", "--duration", "60", "--record", str(bad)])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert f"cogblocks: error: --record {bad}: the folder {bad.parent} does not exist" in captured.err
+    code = main(["live", "phase", "--in", "x", "--out", "o", "--duration", "1", "--record", str(tmp_path / "s.csv")])
+    assert code == 2 and "the file name must end in .xdf" in capsys.readouterr().err
