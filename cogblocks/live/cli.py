@@ -101,7 +101,7 @@ def _run_live(args: argparse.Namespace) -> int:
 
 def _run_replay(args: argparse.Namespace) -> int:
     try:
-        from cogblocks.live.replay import load_session, replay
+        from cogblocks.live.replay import load_session, replay_session
         from cogblocks.live.runner import save_report
         from cogblocks.live.xdf import check_output_path
     except ImportError as exc:
@@ -119,7 +119,7 @@ def _run_replay(args: argparse.Namespace) -> int:
     for key in ("group", "policy", "delay", "unit"):
         if getattr(args, key, None) is not None:
             options[key] = getattr(args, key)
-    report = replay(_build(options), session)
+    report = replay_session(_build(options), session)
     if args.save:
         save_report(report, args.save)
     _print(args, report, f"{args.diagram} replayed from {args.file}")

@@ -17,7 +17,7 @@ from cogblocks.live.session import RUN_STREAM
 from cogblocks.live.timed import StreamHeader, TimedInlet
 from cogblocks.sim import Diagram
 
-__all__ = ["RecordedStream", "Session", "load_session", "replay"]
+__all__ = ["RecordedStream", "Session", "load_session", "replay_session"]
 
 
 def _desc(stream: dict[str, Any]) -> dict[str, Any]:
@@ -175,7 +175,7 @@ def load_session(path: str | os.PathLike) -> Session:
     return Session(path, streams, float(meta.get("dt", "0.01")), json.loads(meta.get("options") or "{}"))
 
 
-def replay(diagram: Diagram, session: Session, *, record: bool = True) -> RealtimeReport:
+def replay_session(diagram: Diagram, session: Session, *, record: bool = True) -> RealtimeReport:
     """Run ``diagram`` (built as the recorded run's was) on ``session``, tick for tick, as fast as it computes.
 
     Every inlet plays its recorded stream and tick clocks, so it computes the values the live inlet

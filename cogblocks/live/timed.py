@@ -149,7 +149,7 @@ class TimedInlet(Block):
                 f"{stream} declares unit(s) {sorted(set(u for u in units if u))}; source_unit "
                 f"{self.source_unit!r} is for a stream that declares none"
             )
-        if not any(units) and self.source_unit is None:
+        if not any(units) and self.source_unit is None and self.unit != "1":  # a plain number cannot be misread
             warnings.warn(
                 f"{self.name or type(self).__name__}: {stream} declares no unit; its values are taken as "
                 f"{self.unit!r} (give the stream's unit as source_unit, --unit on the command line)",

@@ -30,9 +30,9 @@ def _inlets(name, **modes):
 
 
 def test_every_live_block_states_its_bad_data_policy(lsl):
-    from cogblocks.live import LSLInlet, LSLOutlet, OSCSender
+    from cogblocks.live import LSLInlet, LSLOutlet, OSCReceiver, OSCSender
 
-    for cls in (LSLInlet, LSLOutlet, OSCSender):
+    for cls in (LSLInlet, LSLOutlet, OSCReceiver, OSCSender):
         assert "Bad data policy" in inspect.getdoc(cls), cls.__name__
 
 

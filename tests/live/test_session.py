@@ -22,7 +22,7 @@ def _live(lsl, streamer, stream_name, build, signal, channels, unit, seconds=2.0
 
 def test_a_recorded_phase_session_reads_back_and_replays_bit_for_bit(lsl, streamer, stream_name, tmp_path):
     from cogblocks.live import live_phase
-    from cogblocks.live.replay import load_session, replay
+    from cogblocks.live.replay import load_session, replay_session
     from cogblocks.live.session import write_session
 
     def arm(t):
@@ -53,7 +53,7 @@ def test_a_recorded_phase_session_reads_back_and_replays_bit_for_bit(lsl, stream
 
     session = load_session(path)
     assert session.options == options and session.dt == 0.01
-    replayed = replay(live_phase(f"{stream_name}-in", f"{stream_name}-out"), session)
+    replayed = replay_session(live_phase(f"{stream_name}-in", f"{stream_name}-out"), session)
     assert replayed.ticks == report.ticks and replayed.samples_in == report.samples_in
     assert replayed.late_ticks == report.late_ticks
     for name in ("theta", "sample", "age_ms", "fresh"):
@@ -67,7 +67,7 @@ def test_a_recorded_phase_session_reads_back_and_replays_bit_for_bit(lsl, stream
 def test_a_sync_session_replays_on_three_wrapped_channels(lsl, streamer, stream_name, tmp_path):
     from cogblocks.data.groups import TABLE2
     from cogblocks.live import live_sync
-    from cogblocks.live.replay import load_session, replay
+    from cogblocks.live.replay import load_session, replay_session
     from cogblocks.live.session import write_session
 
     omega = np.asarray(TABLE2[1].omega)
@@ -79,7 +79,7 @@ def test_a_sync_session_replays_on_three_wrapped_channels(lsl, streamer, stream_
         lsl, streamer, stream_name, build, lambda t: np.mod(omega * t, 2 * np.pi), TABLE2[1].n, "rad", 1.5
     )
     path = write_session(tmp_path / "s.xdf", compiled, report)
-    replayed = replay(build(f"{stream_name}-in", f"{stream_name}-out"), load_session(path))
+    replayed = replay_session(build(f"{stream_name}-in", f"{stream_name}-out"), load_session(path))
     for name in ("theta_l2", "sample", "age_ms"):
         np.testing.assert_array_equal(replayed.trace[name], report.trace[name], err_msg=name)
 
