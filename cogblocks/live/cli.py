@@ -12,6 +12,7 @@ from cogblocks.cli_options import POLICY, STEP
 __all__ = ["add_live_parser"]
 
 DT = 0.01  # 100 Hz
+SCOPE_PORT = 8765
 _HELPS = {
     "phase": "a 1-channel position stream (mm) in, its estimated phase (rad) out",
     "sync": "the participants' phases (rad, one channel each) in, the avatar's phase θ_L2 out",
@@ -75,14 +76,29 @@ def _run_live(args: argparse.Namespace) -> int:
         return 130
     if args.record:
         enable_recording(compiled)
+    scope = None
     try:
+        if args.scope is not None:
+            from cogblocks.live.scope import Scope
+
+            units = {n: compiled.output_port(n).spec.unit for n in compiled.output_names}
+            scope = Scope(compiled.output_names, units, port=args.scope, title=f"cogblocks live {args.diagram}")
+            print(f"scope at {scope.url}", file=sys.stderr, flush=True)
         report = run_realtime(
-            compiled, args.duration, 1.0 / DT, record=bool(args.save), record_raw=bool(args.save), save=args.save
+            compiled,
+            args.duration,
+            1.0 / DT,
+            record=bool(args.save),
+            record_raw=bool(args.save),
+            save=args.save,
+            scope=scope,
         )
     finally:
         for block in compiled.blocks.values():
             if hasattr(block, "close"):
                 block.close()
+        if scope is not None:
+            scope.close()
     code = 0
     if args.record:
         try:
@@ -125,6 +141,25 @@ def _run_replay(args: argparse.Namespace) -> int:
     _print(args, report, f"{args.diagram} replayed from {args.file}")
     if args.save and not args.json:
         print(f"saved the trace to {args.save}")
+    return 0
+
+
+def _run_view(args: argparse.Namespace) -> int:
+    import time
+
+    from cogblocks.live.scope import Scope
+    from cogblocks.live.view import load_run
+
+    t, signals, units, late = load_run(args.file)
+    scope = Scope.of_run(t, signals, units, late, port=args.port, title=f"cogblocks view {args.file}")
+    print(f"view of {args.file} at {scope.url} (Ctrl-C stops)", flush=True)
+    try:
+        while True:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        scope.close()
     return 0
 
 
@@ -173,6 +208,14 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
             metavar="FILE",
             help="record the session (every stream read and written, tick clocks) to FILE (.xdf, read by pyxdf)",
         )
+        p.add_argument(
+            "--scope",
+            nargs="?",
+            const=SCOPE_PORT,
+            type=int,
+            metavar="PORT",
+            help=f"serve a page that plots the run on http://127.0.0.1:PORT/ (default port {SCOPE_PORT})",
+        )
         _diagram_options(p, name, replay=False)
         p.set_defaults(handler=_run_live)
 
@@ -190,3 +233,10 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
         p.add_argument("--save", metavar="FILE", help="save the trace to FILE (.npz)")
         _diagram_options(p, name, replay=True)
         p.set_defaults(handler=_run_replay)
+
+    view = commands.add_parser(
+        "view", help="show a saved run (.npz from --save) or a recorded session (.xdf) in the browser, with a slider"
+    )
+    view.add_argument("file", metavar="TRACE", help="a trace saved by --save (.npz) or a session (.xdf)")
+    view.add_argument("--port", type=int, default=SCOPE_PORT, help=f"port on 127.0.0.1 (default {SCOPE_PORT})")
+    view.set_defaults(handler=_run_view)

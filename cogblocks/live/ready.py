@@ -9,7 +9,7 @@ from cogblocks.live.outlet import LSLOutlet
 from cogblocks.phase import PhaseEstimator
 from cogblocks.sensing import L1, KalmanEstimator
 from cogblocks.sim import Block, Diagram
-from cogblocks.sync import L2Sync
+from cogblocks.sync import L2Sync, OrderParameter
 
 __all__ = ["LAG", "LIVE_DIAGRAMS", "live_l1", "live_motion", "live_phase", "live_sync"]
 
@@ -68,7 +68,9 @@ def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = 
     for a group of Table 2 (its size fixes the channel count) with the motion computer ``motion``
     (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`, built by :func:`live_motion`;
     the trained DQN policy by default). The inlet resamples the phases :data:`LAG` s back on the tick grid, along
-    the circle.
+    the circle. Besides ``theta_l2`` and the inlet's ``sample``, ``age_ms`` and ``fresh``, the diagram shows
+    ``theta_l0`` (the assisted participant's phase), the blending's ``lam`` and ``r``, the order parameter of
+    the participants' phases as received.
     """
     if group not in TABLE2:
         raise ValueError(f"live_sync: group must be one of {sorted(TABLE2)}, got {group!r}")
@@ -79,7 +81,13 @@ def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = 
     inlet = LSLInlet(
         in_stream, shape=(params.n,), unit="rad", wrapped=True, mode="interpolate", lag=LAG, timeout=timeout
     )
-    return _wire(arch, "theta", "theta_l2", inlet, LSLOutlet(out_stream, stream_type="Phase"))
+    d = _wire(arch, "theta", "theta_l2", inlet, LSLOutlet(out_stream, stream_type="Phase"))
+    order = d.add("order", OrderParameter())
+    d.connect(inlet.y, order.theta)
+    d.expose_output("theta_l0", arch.theta_l0)
+    d.expose_output("lam", arch.lam)
+    d.expose_output("r", order.r)
+    return d
 
 
 def live_l1(
