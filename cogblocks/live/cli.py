@@ -29,20 +29,6 @@ def _options(args: argparse.Namespace) -> dict[str, Any]:
     return keep
 
 
-def _build(options: dict[str, Any]):
-    from cogblocks.live.ready import LIVE_DIAGRAMS
-
-    kw: dict[str, Any] = {"timeout": options.get("timeout", 5.0)}
-    name = options["diagram"]
-    if name == "sync":
-        kw.update(group=options.get("group", 1), motion=options.get("policy", "dqn"))
-    else:
-        kw.update(source_unit=options.get("unit"))
-    if name == "l1":
-        kw.update(delay=options.get("delay", 0.1))
-    return LIVE_DIAGRAMS[name](options["in"], options["out"], **kw)
-
-
 def _print(args: argparse.Namespace, report: Any, what: str) -> None:
     result = report.summary()
     if args.json:
@@ -59,6 +45,7 @@ def _print(args: argparse.Namespace, report: Any, what: str) -> None:
 
 def _run_live(args: argparse.Namespace) -> int:
     try:
+        from cogblocks.live.ready import live_diagram
         from cogblocks.live.runner import run_realtime
         from cogblocks.live.session import enable_recording, write_session
         from cogblocks.live.xdf import RecordingError, check_output_path
@@ -71,7 +58,7 @@ def _run_live(args: argparse.Namespace) -> int:
         check_output_path(args.save, (".npz",), "--save")
     options = _options(args)
     try:
-        compiled = _build(options).compile(DT)
+        compiled = live_diagram(options).compile(DT)
     except KeyboardInterrupt:
         return 130
     if args.record:
@@ -81,8 +68,7 @@ def _run_live(args: argparse.Namespace) -> int:
         if args.scope is not None:
             from cogblocks.live.scope import Scope
 
-            units = {n: compiled.output_port(n).spec.unit for n in compiled.output_names}
-            scope = Scope(compiled.output_names, units, port=args.scope, title=f"cogblocks live {args.diagram}")
+            scope = Scope.for_diagram(compiled, port=args.scope, title=f"cogblocks live {args.diagram}")
             print(f"scope at {scope.url}", file=sys.stderr, flush=True)
         report = run_realtime(
             compiled,
@@ -117,6 +103,7 @@ def _run_live(args: argparse.Namespace) -> int:
 
 def _run_replay(args: argparse.Namespace) -> int:
     try:
+        from cogblocks.live.ready import live_diagram
         from cogblocks.live.replay import load_session, replay_session
         from cogblocks.live.runner import save_report
         from cogblocks.live.xdf import check_output_path
@@ -135,7 +122,7 @@ def _run_replay(args: argparse.Namespace) -> int:
     for key in ("group", "policy", "delay", "unit"):
         if getattr(args, key, None) is not None:
             options[key] = getattr(args, key)
-    report = replay_session(_build(options), session)
+    report = replay_session(live_diagram(options), session)
     if args.save:
         save_report(report, args.save)
     _print(args, report, f"{args.diagram} replayed from {args.file}")
@@ -147,11 +134,11 @@ def _run_replay(args: argparse.Namespace) -> int:
 def _run_view(args: argparse.Namespace) -> int:
     import time
 
-    from cogblocks.live.scope import Scope
+    from cogblocks.live.scope import ScopeView
     from cogblocks.live.view import load_run
 
     t, signals, units, late = load_run(args.file)
-    scope = Scope.of_run(t, signals, units, late, port=args.port, title=f"cogblocks view {args.file}")
+    scope = ScopeView(t, signals, units, late, port=args.port, title=f"cogblocks view {args.file}")
     print(f"view of {args.file} at {scope.url} (Ctrl-C stops)", flush=True)
     try:
         while True:

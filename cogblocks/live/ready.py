@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.diagrams.sync import MOTIONS
 from cogblocks.live.inlet import LSLInlet
@@ -11,7 +13,7 @@ from cogblocks.sensing import L1, KalmanEstimator
 from cogblocks.sim import Block, Diagram
 from cogblocks.sync import L2Sync, OrderParameter
 
-__all__ = ["LAG", "LIVE_DIAGRAMS", "live_l1", "live_motion", "live_phase", "live_sync"]
+__all__ = ["LAG", "LIVE_DIAGRAMS", "live_diagram", "live_l1", "live_motion", "live_phase", "live_sync"]
 
 #: How far back the inlets read a stream: a 100 Hz sample period plus transport and jitter, so that
 #: two received samples surround the time read and the blocks see the stream on a regular grid.
@@ -116,3 +118,23 @@ def live_l1(
 
 #: The ready live diagrams by the name ``cogblocks live`` gives them.
 LIVE_DIAGRAMS = {"phase": live_phase, "sync": live_sync, "l1": live_l1}
+
+
+def live_diagram(options: dict[str, Any]) -> Diagram:
+    """The ready diagram that ``options`` describe, as a session file keeps them.
+
+    Keys: ``diagram`` (a name of :data:`LIVE_DIAGRAMS`), ``in`` and ``out`` (stream names), and as they
+    apply ``timeout``, ``group`` and ``policy`` (sync), ``delay`` (l1), ``unit`` (the input's unit when the
+    stream declares none; phase and l1).
+    """
+    name = options.get("diagram")
+    if name not in LIVE_DIAGRAMS:
+        raise ValueError(f"live_diagram: diagram must be one of {sorted(LIVE_DIAGRAMS)}, got {name!r}")
+    kw: dict[str, Any] = {"timeout": options.get("timeout", 5.0)}
+    if name == "sync":
+        kw.update(group=options.get("group", 1), motion=options.get("policy", "dqn"))
+    else:
+        kw.update(source_unit=options.get("unit"))
+    if name == "l1":
+        kw.update(delay=options.get("delay", 0.1))
+    return LIVE_DIAGRAMS[name](options["in"], options["out"], **kw)

@@ -1,48 +1,43 @@
 """A scope in the browser: a run's outputs as they go (``cogblocks live --scope``) or a saved run (``cogblocks view``).
 
 The page is served by the standard library (``http.server`` on 127.0.0.1) and fed by Server-Sent
-Events at :data:`REFRESH_HZ`; it draws on HTML canvases with its own few lines of JavaScript, so the
-scope needs no package, no plotting library and no internet. The tick loop only appends each tick's
-outputs to a bounded buffer (:meth:`Scope.push`); the server's threads read and serve it.
+Events at :data:`~cogblocks.live.scope_server.REFRESH_HZ`; it draws on HTML canvases with its own few
+lines of JavaScript, so the scope needs no package, no plotting library and no internet. During a live
+run the tick loop only writes each tick's outputs into a bounded ring of floats in a memory-mapped file
+(:meth:`Scope.push`); a server in another process reads the ring and serves the page, so that its work
+never holds this process's interpreter lock.
 """
 
 from __future__ import annotations
 
-import collections
 import json
 import math
+import os
+import subprocess
+import sys
+import tempfile
 import threading
 from collections.abc import Mapping, Sequence
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
 
 import numpy as np
 
-from cogblocks.live.scope_page import PAGE
+from cogblocks.live.scope_server import HEADER, StaticFeed, layout, message, serve
 
-__all__ = ["PANELS", "REFRESH_HZ", "Scope"]
+__all__ = ["Scope", "ScopeView"]
 
-#: Updates sent to a live page per second.
-REFRESH_HZ = 20.0
-#: The page's panels: title and the series drawn in it, in this order (absent series are left out).
-PANELS = (
-    ("inputs", ("sample",)),
-    ("phases (rad)", ("theta", "theta_l2", "theta_l0")),
-    ("θ_L2 − θ_L0 (rad)", ("theta_l2_minus_l0",)),
-    ("λ (rad)", ("lam",)),
-    ("r", ("r",)),
-    ("late ticks (cumulative)", ("late",)),
-)
 # outputs about the inlet's timing, not the run's content
 _HIDDEN = {"age_ms", "fresh"}
 
 
-def _floats(x: Any) -> list[float | None]:
-    return [v if math.isfinite(v) else None for v in np.asarray(x, dtype=np.float64).ravel().tolist()]
+def _port(owner: str, port: Any) -> int:
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+        raise ValueError(f"{owner}: port must be an integer in [0, 65535], got {port!r}")
+    return port
 
 
 class Scope:
-    """Serve a page that plots a run: live (rows pushed by the tick loop) or a whole saved run.
+    """Serve a page that plots a live run; the tick loop calls :meth:`push` once per tick.
 
     Parameters
     ----------
@@ -50,10 +45,12 @@ class Scope:
         The outputs to show (each tick's row holds them).
     units : mapping of str to str
         Their units, for the legends.
+    sizes : mapping of str to int, optional
+        Values per output (default: 1 each); give the compiled diagram's, e.g. via :meth:`for_diagram`.
     port : int
         TCP port on 127.0.0.1 (0: any free port; see :attr:`url`).
     capacity : int
-        Ticks kept for a page that connects late (a minute at 100 Hz by default).
+        Ticks kept in the ring (a minute at 100 Hz by default): a page that connects late starts there.
     title : str
         Shown at the top of the page.
 
@@ -67,138 +64,122 @@ class Scope:
         self,
         names: Sequence[str],
         units: Mapping[str, str],
+        sizes: Mapping[str, int] | None = None,
         *,
         port: int = 0,
         capacity: int = 6000,
         title: str = "cogblocks",
     ) -> None:
-        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
-            raise ValueError(f"Scope: port must be an integer in [0, 65535], got {port!r}")
+        port = _port("Scope", port)
         self.names = [n for n in names if n not in _HIDDEN]
-        self.units = {n: units.get(n) or "" for n in self.names}
-        self.title = title
-        self._rows: collections.deque = collections.deque(maxlen=capacity)
-        self._lock = threading.Lock()
-        self._seq = 0
-        self._late = 0
-        self._static: dict[str, Any] | None = None
-        self._closed = threading.Event()
-        try:
-            self._server = ThreadingHTTPServer(("127.0.0.1", port), self._handler())
-        except OSError as exc:
-            raise ValueError(f"Scope: cannot serve on 127.0.0.1:{port} ({exc})") from None
-        self._server.daemon_threads = True
-        self.url = f"http://127.0.0.1:{self._server.server_address[1]}/"
-        self._thread = threading.Thread(target=self._server.serve_forever, name="cogblocks scope", daemon=True)
-        self._thread.start()
-
-    # -- the tick loop's side: one append under an uncontended lock ------------------------
-    def push(self, t: float, row: Mapping[str, Any], late: bool) -> None:
-        """Add one tick (its time, its outputs as ``CompiledDiagram.step`` returned them, whether it was late)."""
-        with self._lock:
-            self._late += bool(late)
-            self._rows.append((self._seq, t, row, self._late))
-            self._seq += 1
+        sizes = {n: int((sizes or {}).get(n, 1)) for n in self.names}
+        self._slices = []
+        at = 2  # columns 0 and 1: time, late ticks so far
+        for n in self.names:
+            self._slices.append((n, at, at + sizes[n]))
+            at += sizes[n]
+        width = at
+        handle, self._path = tempfile.mkstemp(prefix="cogblocks-scope-", suffix=".ring", dir=_ring_folder())
+        os.close(handle)
+        self._ring = np.memmap(self._path, dtype=np.float64, mode="w+", shape=(HEADER + capacity * width,))
+        self._ring[:HEADER] = (0, capacity, width)
+        self._rows = self._ring[HEADER:].reshape(capacity, width)
+        self._capacity, self._seq, self._late = capacity, 0, 0
+        spec = {"meta": layout(self.names, dict(units), title, "live"), "sizes": sizes}
+        self._server = subprocess.Popen(
+            [sys.executable, "-m", "cogblocks.live.scope_server", self._path, str(port), json.dumps(spec)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        line = self._server.stdout.readline().strip()
+        if not line.startswith("http://"):
+            self.close()
+            raise ValueError(f"Scope: {line or 'the server did not start'}")
+        self.url = line
 
     @classmethod
-    def of_run(
-        cls,
+    def for_diagram(cls, compiled: Any, **kw: Any) -> Scope:
+        """A scope of every output of a compiled diagram."""
+        names = list(compiled.output_names)
+        specs = {n: compiled.output_port(n).spec for n in names}
+        return cls(
+            names, {n: s.unit for n, s in specs.items()}, {n: math.prod(s.shape) for n, s in specs.items()}, **kw
+        )
+
+    def push(self, t: float, row: Mapping[str, Any], late: bool) -> None:
+        """Add one tick: its time, its outputs (as ``CompiledDiagram.step`` returns them), whether it was late."""
+        self._late += bool(late)
+        line = self._rows[self._seq % self._capacity]
+        line[0], line[1] = t, self._late
+        for name, a, b in self._slices:
+            line[a:b] = np.ravel(row[name])
+        self._seq += 1
+        self._ring[0] = self._seq  # after the row: the server reads only complete rows
+
+    def close(self) -> None:
+        """Stop the server and remove the ring."""
+        if self._server.poll() is None:
+            self._server.stdin.close()
+            try:
+                self._server.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self._server.kill()
+                self._server.wait()
+        self._server.stdout.close()
+        del self._rows, self._ring
+        if os.path.exists(self._path):
+            os.unlink(self._path)
+
+
+def _ring_folder() -> str | None:
+    return "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+
+
+class ScopeView:
+    """Serve a page that shows a whole saved run with a time slider (``cogblocks view``), from this process.
+
+    Parameters
+    ----------
+    t : numpy.ndarray, shape (n,)
+        Tick times.
+    signals : mapping of str to numpy.ndarray
+        The outputs, first axis the ticks.
+    units : mapping of str to str
+    late : numpy.ndarray of bool, optional
+        Which ticks were late.
+    port : int
+    title : str
+    """
+
+    def __init__(
+        self,
         t: np.ndarray,
         signals: Mapping[str, np.ndarray],
         units: Mapping[str, str],
         late: np.ndarray | None = None,
-        **kw: Any,
-    ) -> Scope:
-        """A scope of a whole saved run, drawn with a time slider (``cogblocks view``)."""
-        scope = cls(list(signals), units, **kw)
-        rows = [{name: signals[name][i] for name in scope.names} for i in range(len(t))]
-        flags = np.zeros(len(t), dtype=bool) if late is None else np.asarray(late, dtype=bool)
-        scope._static = scope._message(
-            list(zip(range(len(t)), t.tolist(), rows, np.cumsum(flags).tolist(), strict=True))
-        )
-        return scope
+        *,
+        port: int = 0,
+        title: str = "cogblocks",
+    ) -> None:
+        port = _port("ScopeView", port)
+        names = [n for n in signals if n not in _HIDDEN]
+        n = len(t)
+        flags = np.zeros(n, dtype=bool) if late is None else np.asarray(late, dtype=bool)
+        columns = {name: np.asarray(signals[name], dtype=np.float64).reshape(n, -1) for name in names}
+        data = message(np.asarray(t, dtype=np.float64), np.cumsum(flags), columns, n)
+        self._stop = threading.Event()
+        try:
+            self._server = serve(StaticFeed(layout(names, dict(units), title, "view"), data), port, self._stop)
+        except OSError as exc:
+            raise ValueError(f"ScopeView: cannot serve on 127.0.0.1:{port} ({exc})") from None
+        self.url = f"http://127.0.0.1:{self._server.server_address[1]}/"
+        self._thread = threading.Thread(target=self._server.serve_forever, name="cogblocks view", daemon=True)
+        self._thread.start()
 
     def close(self) -> None:
         """Stop serving."""
-        self._closed.set()
+        self._stop.set()
         self._server.shutdown()
         self._server.server_close()
         self._thread.join()
-
-    # -- the server's side ---------------------------------------------------------------
-    def _meta(self) -> dict[str, Any]:
-        series = {n: self.units[n] for n in self.names}
-        if "theta_l2" in series and "theta_l0" in series:
-            series["theta_l2_minus_l0"] = "rad"
-        series["late"] = "ticks"
-        panels = [(title, [s for s in names if s in series]) for title, names in PANELS]
-        placed = {s for _, names in panels for s in names}
-        panels += [(f"{n} ({series[n]})" if series[n] else n, [n]) for n in series if n not in placed]
-        return {
-            "title": self.title,
-            "mode": "live" if self._static is None else "view",
-            "refresh_hz": REFRESH_HZ,
-            "panels": [{"title": title, "series": names} for title, names in panels if names],
-        }
-
-    def _since(self, seq: int) -> tuple[list[tuple], int]:
-        with self._lock:
-            rows = [r for r in self._rows if r[0] >= seq] if self._rows and self._rows[-1][0] >= seq else []
-        return rows, (rows[-1][0] + 1 if rows else seq)
-
-    def _message(self, rows: list[tuple]) -> dict[str, Any]:
-        out: dict[str, Any] = {"t": [r[1] for r in rows], "late": [[r[3]] for r in rows]}
-        for name in self.names:
-            out[name] = [_floats(r[2][name]) for r in rows]
-        if "theta_l2" in self.names and "theta_l0" in self.names:
-            d = [np.angle(np.exp(1j * (np.ravel(r[2]["theta_l2"]) - np.ravel(r[2]["theta_l0"])))) for r in rows]
-            out["theta_l2_minus_l0"] = [_floats(x) for x in d]
-        out["ticks"] = rows[-1][0] + 1 if rows else 0
-        return out
-
-    def _handler(self) -> type[BaseHTTPRequestHandler]:
-        scope = self
-
-        class Handler(BaseHTTPRequestHandler):
-            def log_message(self, *args: Any) -> None:  # the terminal is the run's
-                pass
-
-            def _send(self, body: bytes, kind: str) -> None:
-                self.send_response(200)
-                self.send_header("Content-Type", kind)
-                self.send_header("Content-Length", str(len(body)))
-                self.send_header("Cache-Control", "no-store")
-                self.end_headers()
-                self.wfile.write(body)
-
-            def do_GET(self) -> None:  # noqa: N802 - the name http.server calls
-                if self.path == "/":
-                    self._send(PAGE.encode("utf-8"), "text/html; charset=utf-8")
-                elif self.path == "/meta":
-                    self._send(json.dumps(scope._meta()).encode(), "application/json")
-                elif self.path == "/data" and scope._static is not None:
-                    self._send(json.dumps(scope._static).encode(), "application/json")
-                elif self.path == "/events" and scope._static is None:
-                    self._events()
-                else:
-                    self.send_error(404)
-
-            def _events(self) -> None:
-                self.send_response(200)
-                self.send_header("Content-Type", "text/event-stream")
-                self.send_header("Cache-Control", "no-store")
-                self.end_headers()
-                seq = 0
-                try:
-                    while not scope._closed.wait(1.0 / REFRESH_HZ):
-                        rows, seq = scope._since(seq)
-                        if rows:
-                            payload = json.dumps(scope._message(rows))
-                            self.wfile.write(f"data: {payload}\n\n".encode())
-                        else:
-                            self.wfile.write(b": idle\n\n")  # a comment keeps the connection checked
-                        self.wfile.flush()
-                except (BrokenPipeError, ConnectionResetError):
-                    pass  # the page was closed
-
-        return Handler

@@ -38,13 +38,13 @@ def load_run(path: str | os.PathLike) -> tuple[np.ndarray, dict[str, np.ndarray]
             late = (run["start_ms"] + run["tick_ms"] > 1e3 * dt) if "tick_ms" in run.files else np.zeros(len(t), bool)
         return t, signals, {k: "" for k in signals}, late[: len(t)]
     if suffix == ".xdf":
-        from cogblocks.live.cli import _build
+        from cogblocks.live.ready import live_diagram
         from cogblocks.live.replay import load_session, replay_session
 
         session = load_session(path)
         if "diagram" not in session.options:
             raise ValueError(f"{path}: names no ready diagram to replay (record it with cogblocks live --record)")
-        report = replay_session(_build(session.options), session)
+        report = replay_session(live_diagram(session.options), session)
         trace = report.trace
         signals = {name: trace[name] for name in trace}
         return trace.t, signals, {name: trace.units.get(name, "") for name in trace}, session.run_figures()["late"]

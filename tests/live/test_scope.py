@@ -54,8 +54,7 @@ def test_the_live_page_draws_the_sync_run_as_it_goes(lsl, streamer, stream_name,
     omega = np.asarray(TABLE2[1].omega)
     streamer(f"{stream_name}-phases", lambda t: np.mod(omega * t, 2 * np.pi), channels=TABLE2[1].n, unit="rad")
     compiled = live_sync(f"{stream_name}-phases", f"{stream_name}-l2", group=1, motion="mean").compile(0.01)
-    units = {n: compiled.output_port(n).spec.unit for n in compiled.output_names}
-    scope = Scope(compiled.output_names, units, title="sync test")
+    scope = Scope.for_diagram(compiled, title="sync test")
     meta = json.loads(urllib.request.urlopen(scope.url + "meta").read())
     assert [p["title"] for p in meta["panels"]] == [
         "inputs",
@@ -92,7 +91,7 @@ def test_the_live_page_draws_the_sync_run_as_it_goes(lsl, streamer, stream_name,
 
 def test_the_view_page_shows_a_saved_run_with_a_time_slider(browser, tmp_path):
     from cogblocks.live.runner import RealtimeReport, save_report
-    from cogblocks.live.scope import Scope
+    from cogblocks.live.scope import ScopeView
     from cogblocks.live.view import load_run
     from cogblocks.sim import Trace
 
@@ -105,7 +104,7 @@ def test_the_view_page_shows_a_saved_run_with_a_time_slider(browser, tmp_path):
     path = save_report(report, tmp_path / "run.npz")
     times, signals, units, flags = load_run(path)
     assert set(signals) == {"theta", "sample"} and flags.sum() == 2
-    scope = Scope.of_run(times, signals, units, flags, title="view test")
+    scope = ScopeView(times, signals, units, flags, title="view test")
     try:
         browser.get(scope.url)
         _until(lambda: browser.execute_script("return window.scope.draws") > 0, "draw")

@@ -59,6 +59,13 @@ def test_a_recorded_phase_session_reads_back_and_replays_bit_for_bit(lsl, stream
     for name in ("theta", "sample", "age_ms", "fresh"):
         np.testing.assert_array_equal(replayed.trace[name], report.trace[name], err_msg=name)
     assert replayed.max_age_ms == report.max_age_ms
+    # cogblocks view shows a session through the same replay: the live run's every output and its late ticks
+    from cogblocks.live.view import load_run
+
+    t, signals, units, late = load_run(path)
+    np.testing.assert_array_equal(t, report.trace.t)
+    np.testing.assert_array_equal(signals["theta"], report.trace["theta"])
+    assert units["theta"] == "rad" and late.sum() == report.late_ticks
     # the replay saw the stream in mm, as the live run did
     finite = np.isfinite(report.trace["sample"])
     assert finite.sum() > 150 and np.nanmax(np.abs(report.trace["sample"])) == pytest.approx(150.0, abs=1.0)
