@@ -83,7 +83,9 @@ class Scope:
         os.close(handle)
         self._ring = np.memmap(self._path, dtype=np.float64, mode="w+", shape=(HEADER + capacity * width,))
         self._ring[:HEADER] = (0, capacity, width)
-        self._rows = self._ring[HEADER:].reshape(capacity, width)
+        # plain ndarray views of the map: indexing a memmap object costs a few microseconds a time
+        self._head = np.asarray(self._ring[:HEADER])
+        self._rows = np.asarray(self._ring[HEADER:]).reshape(capacity, width)
         self._capacity, self._seq, self._late = capacity, 0, 0
         spec = {"meta": layout(self.names, dict(units), title, "live"), "sizes": sizes}
         self._server = subprocess.Popen(
@@ -111,11 +113,13 @@ class Scope:
         """Add one tick: its time, its outputs (as ``CompiledDiagram.step`` returns them), whether it was late."""
         self._late += bool(late)
         line = self._rows[self._seq % self._capacity]
-        line[0], line[1] = t, self._late
+        line[0] = t
+        line[1] = self._late
         for name, a, b in self._slices:
-            line[a:b] = np.ravel(row[name])
+            value = row[name]
+            line[a:b] = value if isinstance(value, float) else np.ravel(value)
         self._seq += 1
-        self._ring[0] = self._seq  # after the row: the server reads only complete rows
+        self._head[0] = self._seq  # after the row: the server reads only complete rows
 
     def close(self) -> None:
         """Stop the server and remove the ring."""
@@ -127,7 +131,7 @@ class Scope:
                 self._server.kill()
                 self._server.wait()
         self._server.stdout.close()
-        del self._rows, self._ring
+        del self._rows, self._head, self._ring
         if os.path.exists(self._path):
             os.unlink(self._path)
 
