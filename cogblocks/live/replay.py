@@ -63,39 +63,32 @@ class RecordedStream:
     header : StreamHeader
     stamps, values : numpy.ndarray
         The samples as received (sender's clock, stream's unit).
-    ticks : numpy.ndarray, shape (n, 3)
-        Per tick: start, end (tick clock), samples received.
-    offsets : list of (float, float)
-        ``(tick start, correction)`` each time the correction changed.
+    ticks : numpy.ndarray, shape (n, 4)
+        Per tick: start, end (tick clock), samples received, the clock correction added to their stamps.
     """
 
     header: StreamHeader
     stamps: np.ndarray
     values: np.ndarray
     ticks: np.ndarray
-    offsets: list[tuple[float, float]]
 
     def __post_init__(self) -> None:
         self.rewind()
 
     def rewind(self) -> None:
         """Play from the first tick again."""
-        self._tick = self._sample = self._offset = 0
-        self._correction = 0.0
+        self._tick = self._sample = 0
 
     def tick(self) -> tuple[float, float, list[tuple[np.ndarray, np.ndarray]], float]:
         """The next tick's start and end, the samples it received, and the clock correction in force."""
         if self._tick >= len(self.ticks):
             raise IndexError(f"the recording of stream {self.header.name!r} holds {len(self.ticks)} ticks only")
-        started, now, arrived = self.ticks[self._tick]
+        started, now, arrived, correction = self.ticks[self._tick]
         self._tick += 1
-        while self._offset < len(self.offsets) and self.offsets[self._offset][0] <= started:
-            self._correction = self.offsets[self._offset][1]
-            self._offset += 1
         n = int(arrived)
         chunk = (self.stamps[self._sample : self._sample + n], self.values[self._sample : self._sample + n])
         self._sample += n
-        return float(started), float(now), [chunk] if n else [], self._correction
+        return float(started), float(now), [chunk] if n else [], float(correction)
 
 
 @dataclass
@@ -144,16 +137,13 @@ class Session:
             there = sorted(_cogblocks(s).get("block", "") for s in self.streams if _cogblocks(s).get("role") == "inlet")
             raise ValueError(f"{self.path}: no recorded inlet {path!r} (the file records inlets {there})")
         header = _header(stream)
-        times = list(stream.get("clock_times", []))
-        values = list(stream.get("clock_values", []))
         x = stream["time_series"]
         x = np.asarray(x, dtype=np.float64).reshape(len(stream["time_stamps"]), header.channel_count)
         return RecordedStream(
             header,
             np.asarray(stream["time_stamps"], dtype=np.float64),
             x,
-            np.asarray(ticks["time_series"], dtype=np.float64).reshape(-1, 3),
-            list(zip(times, values, strict=True)),
+            np.asarray(ticks["time_series"], dtype=np.float64).reshape(-1, 4),
         )
 
 

@@ -7,7 +7,8 @@ with its name, type, channel labels and units. Three kinds of cogblocks streams 
 :mod:`cogblocks.live.replay` can re-run the diagram tick for tick:
 
 * ``<block> ticks`` (type ``cogblocks.ticks``), one per inlet: each tick's start and end on the tick
-  clock and how many samples it received (channels ``started``, ``now``, ``arrived``);
+  clock, how many samples it received and the clock correction it added to their time stamps
+  (channels ``started``, ``now``, ``arrived``, ``correction``);
 * ``cogblocks run`` (type ``cogblocks.run``): each tick's ``tick_ms``, ``start_ms`` and ``late``, with
   the step and the run's options in its description.
 
@@ -97,8 +98,8 @@ def session_streams(compiled: CompiledDiagram, report: Any, options: dict[str, A
                 TICKS_TYPE,
                 ticks[:, 1],
                 ticks,
-                labels=["started", "now", "arrived"],
-                units=["s", "s", "1"],
+                labels=["started", "now", "arrived", "correction"],
+                units=["s", "s", "1", "s"],
                 clock_offsets=_origin(ticks[:, 1]),
                 desc={"role": "ticks", "block": path},
             )

@@ -85,8 +85,9 @@ class TimedInlet(Block):
         self.resampler: Resampler | None = None
         self._source: Any = None
         self._log: list[tuple[np.ndarray, np.ndarray]] = []  # raw stamps and raw values, as received
-        self._ticks_log: list[tuple[float, float, int]] = []  # started, now, samples arrived
-        self._offsets_log: list[tuple[float, float]] = []  # tick start, correction, when it changed
+        self._ticks_log: list[tuple[float, float, int, float]] = []  # started, now, samples arrived, correction
+        # (collection time on the stream's clock, correction) each time it changed, as LabRecorder writes them
+        self._offsets_log: list[tuple[float, float]] = []
 
     # -- what a subclass provides ----------------------------------------------
     def _open(self) -> StreamHeader:  # pragma: no cover - abstract
@@ -182,8 +183,8 @@ class TimedInlet(Block):
         arrived = self._take(chunks)
         if self.record:
             if not self._offsets_log or self._offsets_log[-1][1] != self.correction:
-                self._offsets_log.append((started, self.correction))
-            self._ticks_log.append((started, now, arrived))
+                self._offsets_log.append((started - self.correction, self.correction))
+            self._ticks_log.append((started, now, arrived, self.correction))
         self.tick_time = now
         self.fresh.value[...] = arrived > 0
         value, at = self.resampler.read(k, started, now)
@@ -226,21 +227,17 @@ class TimedInlet(Block):
             return np.empty(0), np.empty((0, self.channels)), np.empty(0)
         stamps = np.concatenate([np.asarray(c[0], dtype=np.float64) for c in self._log])
         values = np.concatenate([np.asarray(c[1]).reshape(len(c[0]), self.channels) for c in self._log])
-        # the correction in force at each tick, repeated for the samples that tick received
-        starts = np.array([t[0] for t in self._ticks_log])
-        arrived = np.array([t[2] for t in self._ticks_log], dtype=int)
-        times = np.array([o[0] for o in self._offsets_log])
-        offsets = np.array([o[1] for o in self._offsets_log])
-        per_tick = offsets[np.searchsorted(times, starts, side="right") - 1] if len(times) else np.zeros(len(starts))
-        corrections = np.repeat(per_tick, arrived)
+        # the correction each tick applied, repeated for the samples that tick received
+        ticks = np.array(self._ticks_log, dtype=np.float64).reshape(-1, 4)
+        corrections = np.repeat(ticks[:, 3], ticks[:, 2].astype(int))
         if len(corrections) < len(stamps):  # a Ctrl-C between a receive and its tick's log entry
             corrections = np.concatenate([corrections, np.full(len(stamps) - len(corrections), self.correction)])
         return stamps, values, corrections
 
     def session(self) -> dict[str, Any]:
-        """What a session file keeps of this inlet: header, raw samples, tick clocks, clock offsets."""
+        """What a session file keeps of this inlet: header, raw samples, tick clocks and corrections, clock offsets."""
         stamps, values, _ = self._received()
-        ticks = np.array(self._ticks_log, dtype=np.float64).reshape(-1, 3)
+        ticks = np.array(self._ticks_log, dtype=np.float64).reshape(-1, 4)
         return {"header": self.header, "stamps": stamps, "values": values, "ticks": ticks, "offsets": self._offsets_log}
 
     _stream_kind = "stream"

@@ -190,3 +190,27 @@ def test_view_serves_a_saved_trace_until_ctrl_c(tmp_path):
         view.send_signal(signal.SIGINT)
         out, err = view.communicate(timeout=20)
     assert view.returncode == 0, err
+
+
+def test_live_scope_serves_the_run_on_loopback(lsl, streamer, stream_name):
+    import urllib.request
+
+    streamer(f"{stream_name}-arm", lambda t: 150.0 * np.cos(2 * np.pi * t))
+    cli = _cli("phase", "--in", f"{stream_name}-arm", "--out", f"{stream_name}-ph", "--duration", "4", "--scope", "0")
+    try:
+        line = ""
+        while not line.startswith("scope at ") and cli.poll() is None:
+            line = cli.stderr.readline()  # after liblsl's own messages, if any
+        assert line.startswith("scope at http://127.0.0.1:"), line
+        url = line.split(" at ")[1].strip()
+        meta = json.loads(urllib.request.urlopen(url + "meta", timeout=10).read())
+        assert meta["mode"] == "live" and meta["title"] == "cogblocks live phase"
+        assert [p["series"] for p in meta["panels"]] == [["sample"], ["theta"], ["late"]]
+        with urllib.request.urlopen(url + "events", timeout=10) as events:
+            first = next(line for line in events if line.startswith(b"data: "))
+        rows = json.loads(first[len(b"data: ") :])
+        assert rows["ticks"] > 0 and len(rows["t"]) == len(rows["theta"]) == len(rows["sample"]) > 0
+    finally:
+        out, err = cli.communicate(timeout=60)
+    assert cli.returncode == 0, err
+    assert "400 ticks at 100 Hz" in out
