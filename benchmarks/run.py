@@ -44,6 +44,7 @@ MODULES = [
     "benchmarks.soak",
     "benchmarks.sweep",
     "benchmarks.live",
+    "benchmarks.scope",
     "benchmarks.loaders",
 ]
 

@@ -9,16 +9,23 @@ from typing import Any
 import numpy as np
 import pylsl
 
-from cogblocks.sim import Block
-from cogblocks.sim.params import finite_number, flag, one_of, shape_arg, unit_arg, wrapped_arg
+from cogblocks.live.timed import StreamHeader, TimedInlet
+from cogblocks.sim.params import finite_number
 
 __all__ = ["LSLInlet", "stream_name_arg"]
 
-_TWO_PI = 2.0 * np.pi
 # ticks between two refreshes of the clock offset (liblsl re-measures it in the background)
 _CORRECTION_EVERY = 50
-# a tick this far from its nominal time starts a new interpolation grid
-_REGRID_S = 0.25
+_FORMATS = {
+    pylsl.cf_float32: "float32",
+    pylsl.cf_double64: "double64",
+    pylsl.cf_string: "string",
+    pylsl.cf_int32: "int32",
+    pylsl.cf_int16: "int16",
+    pylsl.cf_int8: "int8",
+    pylsl.cf_int64: "int64",
+    pylsl.cf_undefined: "undefined",
+}
 
 
 def stream_name_arg(owner: str, what: str, value: Any, optional: bool = False) -> str | None:
@@ -30,17 +37,17 @@ def stream_name_arg(owner: str, what: str, value: Any, optional: bool = False) -
     return value
 
 
-def _channel_units(info: pylsl.StreamInfo) -> list[str]:
-    """The ``unit`` of each channel that the stream's description declares ('' where it declares none)."""
-    units = []
+def _channels(info: pylsl.StreamInfo, key: str) -> list[str]:
+    """The ``key`` (``unit``, ``label``) of each channel that the stream's description declares ('' where none)."""
+    found = []
     channel = info.desc().child("channels").child("channel")
     while not channel.empty():
-        units.append(channel.child_value("unit"))
+        found.append(channel.child_value(key))
         channel = channel.next_sibling("channel")
-    return units
+    return found
 
 
-class LSLInlet(Block):
+class LSLInlet(TimedInlet):
     """A Lab Streaming Layer stream, resampled onto the diagram's fixed step.
 
     The stream is resolved (by name and/or type) and opened when the diagram is compiled. Each tick
@@ -76,7 +83,11 @@ class LSLInlet(Block):
     shape : tuple of int
         Shape of one sample; the stream must have ``prod(shape)`` channels (``()``: one channel).
     unit : str
-        Unit of the samples. Channels whose description declares a unit must declare this one.
+        Unit of the port. Channels whose description declares a unit must declare this one, or a length
+        (m, cm, mm) when ``unit`` is a length: the values are converted.
+    source_unit : str, optional
+        The unit of a stream that declares none (without it such a stream is taken in ``unit``, with a
+        warning). Refused for a stream that declares its units.
     wrapped : bool
         Whether the samples are angles wrapped to ``[0, 2π)``.
     mode : {"latest", "interpolate"}
@@ -92,7 +103,7 @@ class LSLInlet(Block):
     timeout : float
         Seconds to wait for the stream when compiled (> 0).
     record : bool
-        Keep every received sample with its corrected timestamp (see :meth:`raw`).
+        Keep every received sample and the tick clocks (see :meth:`raw`; what a session file records).
 
     Attributes
     ----------
@@ -116,8 +127,10 @@ class LSLInlet(Block):
         When compiled, if no stream matches within ``timeout`` (the message names the stream).
     DiagramError
         When compiled, if the stream's channel count, channel format or declared units do not fit
-        ``shape`` and ``unit``.
+        ``shape`` and ``unit`` (a unit that is neither ``unit`` nor, for a length port, a length).
     """
+
+    _stream_kind = "LSL stream"
 
     def __init__(
         self,
@@ -126,6 +139,7 @@ class LSLInlet(Block):
         stream_type: str | None = None,
         shape: tuple[int, ...] | int = (),
         unit: str = "1",
+        source_unit: str | None = None,
         wrapped: bool = False,
         mode: str = "latest",
         lag: float = 0.02,
@@ -134,42 +148,28 @@ class LSLInlet(Block):
         record: bool = False,
         period: float | None = None,
     ) -> None:
-        super().__init__(period=period)
         owner = type(self).__name__
-        self.stream_name = stream_name_arg(owner, "name", name, optional=True)
-        self.stream_type = stream_name_arg(owner, "stream_type", stream_type, optional=True)
+        stream_name = stream_name_arg(owner, "name", name, optional=True)
+        stream_type = stream_name_arg(owner, "stream_type", stream_type, optional=True)
         if name is None and stream_type is None:
             raise ValueError(f"{owner}: give the stream's name, its stream_type or both")
-        self.shape = shape_arg(self, "shape", shape)
-        self.channels = math.prod(self.shape)
-        if self.channels == 0:
-            raise ValueError(f"{owner}: shape must hold at least one channel, got {shape!r}")
-        self.unit = unit_arg(self, "unit", unit)
-        self.wrapped = wrapped_arg(self, "wrapped", wrapped)
-        self.mode = one_of(self, "mode", mode, ("latest", "interpolate"))
-        self.lag = finite_number(self, "lag", lag, low=0.0)
-        self.hold = finite_number(self, "hold", hold, low=0.0, low_open=True)
-        self.timeout = finite_number(self, "timeout", timeout, low=0.0, low_open=True)
-        self.record = flag(self, "record", record)
-        self.add_output(
-            "y", shape=self.shape, unit=self.unit, wrapped=self.wrapped, initial=np.full(self.shape, np.nan)
+        super().__init__(
+            shape=shape,
+            unit=unit,
+            wrapped=wrapped,
+            mode=mode,
+            lag=lag,
+            hold=hold,
+            source_unit=source_unit,
+            record=record,
+            period=period,
         )
-        self.add_output("age_ms", unit="ms", initial=np.inf)
-        self.add_output("fresh", dtype=bool)
+        self.stream_name = stream_name
+        self.stream_type = stream_type
+        self.timeout = finite_number(self, "timeout", timeout, low=0.0, low_open=True)
         self.inlet: pylsl.StreamInlet | None = None
-        self.samples_in = 0
-        self.tick_time = math.nan
-        self.sample_time = math.nan
-        self._grid = (math.nan, 0)  # (LSL time, base tick) of the interpolation grid's origin
-        # the last `capacity` samples, oldest first: enough to interpolate `lag` back
-        self._capacity = 8
-        self._ts = np.empty(0)
-        self._x = np.empty((0, self.channels))
-        self._count = 0
         self._ticks = 0
-        self._correction = 0.0
         self._remote = False
-        self._log: list[tuple[np.ndarray, np.ndarray]] = []
 
     def describe(self) -> str:
         """The stream asked for, as said in messages (``name 'Arm' type 'MoCap'``)."""
@@ -180,10 +180,7 @@ class LSLInlet(Block):
             parts.append(f"type {self.stream_type!r}")
         return " and ".join(parts)
 
-    def setup(self) -> None:
-        self._capacity = max(8, math.ceil(2 * (self.lag + self.hold) / self.dt) + 4)
-        self._ts = np.full(self._capacity, -np.inf)
-        self._x = np.full((self._capacity, self.channels), np.nan)
+    def _open(self) -> StreamHeader:
         clauses = []
         if self.stream_name is not None:
             clauses.append(f"name='{self.stream_name}'")
@@ -198,37 +195,30 @@ class LSLInlet(Block):
             )
         inlet = pylsl.StreamInlet(found[0], max_buflen=max(1, math.ceil(10 * self.hold)), recover=True)
         info = inlet.info(self.timeout)
-        self._check_stream(info)
+        header = StreamHeader(
+            name=info.name(),
+            type=info.type(),
+            channel_count=info.channel_count(),
+            channel_format=_FORMATS.get(info.channel_format(), "undefined"),
+            nominal_srate=info.nominal_srate(),
+            source_id=info.source_id(),
+            labels=_channels(info, "label"),
+            units=_channels(info, "unit"),
+            hostname=info.hostname(),
+        )
+        self.scale = self._check_stream(header)  # before opening: a stream that does not fit is refused at once
         inlet.open_stream(self.timeout)
         # a stream of this machine runs on this clock; another host's is measured (about 0.6 s the first time)
         self._remote = info.hostname() != socket.gethostname()
-        self._correction = 0.0
+        self.correction = 0.0
         if self._remote:
             try:
-                self._correction = inlet.time_correction(self.timeout)
+                self.correction = inlet.time_correction(self.timeout)
             except pylsl.util.TimeoutError:
                 pass  # a peer that answers no clock queries: take its clock as ours
+        self._ticks = 0
         self.inlet = inlet
-
-    def _check_stream(self, info: pylsl.StreamInfo) -> None:
-        stream = f"LSL stream {info.name()!r} (type {info.type()!r})"
-        if info.channel_count() != self.channels:
-            raise self._fail(
-                f"{stream} has {info.channel_count()} channel(s), the port expects shape {self.shape} "
-                f"= {self.channels} channel(s)"
-            )
-        if info.channel_format() in (pylsl.cf_string, pylsl.cf_undefined):
-            raise self._fail(f"{stream} carries strings; the port expects numbers")
-        declared = {u for u in _channel_units(info) if u}
-        if declared - {self.unit}:
-            raise self._fail(f"{stream} declares unit(s) {sorted(declared)}, the port expects {self.unit!r}")
-
-    def reset(self) -> None:
-        super().reset()
-        self._grid = (math.nan, 0)
-        self._ts[:] = -np.inf
-        self._x[:] = np.nan
-        self._count = 0
+        return header
 
     def close(self) -> None:
         """Close the stream (the block cannot run afterwards)."""
@@ -236,88 +226,25 @@ class LSLInlet(Block):
             self.inlet.close_stream()
             self.inlet = None
 
-    def raw(self) -> tuple[np.ndarray, np.ndarray]:
-        """Every sample received with ``record=True``: timestamps on this machine's clock, and values.
+    def _is_open(self) -> bool:
+        return self.inlet is not None
 
-        Returns
-        -------
-        t : numpy.ndarray, shape (n,)
-        x : numpy.ndarray, shape (n, *shape)
-        """
-        if not self._log:
-            return np.empty(0), np.empty((0, *self.shape))
-        t = np.concatenate([c[0] for c in self._log])
-        x = np.concatenate([c[1] for c in self._log]).reshape(len(t), *self.shape)
-        return t, x
+    def _clock(self) -> float:
+        return pylsl.local_clock()
 
-    def _pull(self) -> int:
-        """Move every waiting sample into the buffer; return how many arrived."""
+    def _refresh_correction(self) -> None:
         if self._remote and self._ticks % _CORRECTION_EVERY == 0:
             try:
-                self._correction = self.inlet.time_correction(0.0)
+                self.correction = self.inlet.time_correction(0.0)
             except pylsl.util.TimeoutError:
                 pass  # keep the last offset
         self._ticks += 1
-        arrived = 0
+
+    def _receive(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        chunks = []
+        cap = self.resampler.capacity
         while True:
-            samples, stamps = self.inlet.pull_chunk(timeout=0.0, max_samples=self._capacity)
+            samples, stamps = self.inlet.pull_chunk(timeout=0.0, max_samples=cap)
             if not stamps:
-                return arrived
-            x = np.asarray(samples, dtype=np.float64).reshape(len(stamps), self.channels)
-            x[~np.isfinite(x)] = np.nan
-            t = np.asarray(stamps, dtype=np.float64) + self._correction
-            if self.record:
-                self._log.append((t, x.copy()))
-            self.samples_in += len(t)  # next to the log, so that a Ctrl-C leaves the two in step
-            m = min(len(t), self._capacity)
-            self._ts[:-m] = self._ts[m:]
-            self._x[:-m] = self._x[m:]
-            self._ts[-m:] = t[-m:]
-            self._x[-m:] = x[-m:]
-            arrived += len(t)
-            self._count = min(self._count + len(t), self._capacity)
-
-    def output(self, k: int) -> None:
-        if self.inlet is None:
-            raise self._fail("the stream is closed")
-        started = pylsl.local_clock()  # the grid's clock: a pull held up on a busy machine does not shift it
-        arrived = self._pull()
-        now = pylsl.local_clock()
-        self.tick_time = now
-        self.fresh.value[...] = arrived > 0
-        if self.mode == "latest":
-            at = self._ts[-1] if self._count else math.nan
-            value = self._x[-1] if self._count and now - at <= self.hold else np.nan
-        else:
-            at = self._nominal(k, started) - self.lag
-            value = self._interpolate(at) if self._count else np.nan
-        self.sample_time = at
-        self.age_ms.value[...] = 1e3 * (now - at) if self._count else np.inf
-        self.y.value.flat[:] = value  # a sample, or a NaN for every channel
-
-    def _nominal(self, k: int, now: float) -> float:
-        """The nominal LSL time of base tick ``k``: on a grid of base steps started at a tick."""
-        origin, k0 = self._grid
-        step = self.dt / self.every
-        nominal = origin + (k - k0) * step
-        if not abs(now - nominal) <= _REGRID_S:  # the first tick, or a run paused or far behind
-            self._grid = (now, k)
-            nominal = now
-        return nominal
-
-    def _interpolate(self, at: float) -> np.ndarray | float:
-        ts, xs = self._ts[-self._count :], self._x[-self._count :]
-        if at >= ts[-1]:
-            return xs[-1] if at - ts[-1] <= self.hold else np.nan
-        i = int(np.searchsorted(ts, at, side="right")) - 1
-        if i < 0:
-            return np.nan  # before the first sample still in the buffer
-        t0, t1 = ts[i], ts[i + 1]
-        if t1 - t0 > self.hold:
-            return np.nan
-        a, b = xs[i], xs[i + 1]
-        frac = (at - t0) / (t1 - t0) if t1 > t0 else 1.0
-        if not self.wrapped:
-            return a + frac * (b - a)
-        step = np.mod(b - a + np.pi, _TWO_PI) - np.pi
-        return np.mod(a + frac * step, _TWO_PI)
+                return chunks
+            chunks.append((np.asarray(stamps, dtype=np.float64), np.asarray(samples, dtype=np.float64)))

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
+import numpy as np
 import pylsl
 
 from cogblocks.live.inlet import stream_name_arg
 from cogblocks.sim import Block
+from cogblocks.sim.params import flag
 
 __all__ = ["LSLOutlet"]
 
@@ -36,6 +39,8 @@ class LSLOutlet(Block):
         (default: ``cogblocks-<name>``).
     channel_names : list of str, optional
         One label per channel (default ``<name>0``, ``<name>1``, ...).
+    record : bool
+        Keep every sample pushed with its time stamp (what a session file records, see :meth:`session`).
 
     Attributes
     ----------
@@ -57,6 +62,7 @@ class LSLOutlet(Block):
         stream_type: str = "cogblocks",
         source_id: str | None = None,
         channel_names: list[str] | None = None,
+        record: bool = False,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
@@ -70,9 +76,14 @@ class LSLOutlet(Block):
             raise ValueError(f"{owner}: channel_names must be a list of non-empty strings, got {channel_names!r}")
         self.channel_names = None if channel_names is None else list(channel_names)
         self.add_input("u", shape=None, unit=None, wrapped=None)
+        self.record = flag(self, "record", record)
+        #: Do not publish (a replayed session): count and record the samples only.
+        self.offline = False
         self.outlet: pylsl.StreamOutlet | None = None
         self.samples_out = 0
         self.last_timestamp = math.nan
+        self.labels: list[str] = []
+        self._log: list[tuple[float, np.ndarray]] = []
 
     def setup(self) -> None:
         spec = self.u.spec
@@ -82,6 +93,9 @@ class LSLOutlet(Block):
         labels = self.channel_names or [f"{self.stream_name}{i}" for i in range(n)]
         if len(labels) != n:
             raise self._fail(f"{len(labels)} channel name(s) for an input of {n} channel(s) (shape {spec.shape})")
+        self.labels = list(labels)
+        if self.offline:
+            return
         info = pylsl.StreamInfo(self.stream_name, self.stream_type, n, 1.0 / self.dt, pylsl.cf_double64, self.source_id)
         channels = info.desc().append_child("channels")
         for label in labels:
@@ -99,9 +113,20 @@ class LSLOutlet(Block):
         self.outlet = None  # pylsl destroys the outlet with its last reference
 
     def output(self, k: int) -> None:
-        if self.outlet is None:
+        if self.offline:
+            stamp = math.nan
+        elif self.outlet is None:
             raise self._fail("the stream is closed")
-        stamp = pylsl.local_clock()
-        self.outlet.push_sample(self.u.value.ravel(), stamp)
+        else:
+            stamp = pylsl.local_clock()
+            self.outlet.push_sample(self.u.value.ravel(), stamp)
+        if self.record:
+            self._log.append((stamp, self.u.value.ravel().astype(np.float64)))
         self.last_timestamp = stamp
         self.samples_out += 1
+
+    def session(self) -> dict[str, Any]:
+        """What a session file keeps of this outlet: every sample pushed with ``record=True``, and its stream."""
+        stamps = np.array([s for s, _ in self._log], dtype=np.float64)
+        values = np.array([v for _, v in self._log], dtype=np.float64).reshape(len(stamps), len(self.labels))
+        return {"stamps": stamps, "values": values}

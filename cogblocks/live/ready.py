@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.diagrams.sync import MOTIONS
 from cogblocks.live.inlet import LSLInlet
@@ -9,9 +11,9 @@ from cogblocks.live.outlet import LSLOutlet
 from cogblocks.phase import PhaseEstimator
 from cogblocks.sensing import L1, KalmanEstimator
 from cogblocks.sim import Block, Diagram
-from cogblocks.sync import L2Sync
+from cogblocks.sync import L2Sync, OrderParameter
 
-__all__ = ["LAG", "LIVE_DIAGRAMS", "live_l1", "live_motion", "live_phase", "live_sync"]
+__all__ = ["LAG", "LIVE_DIAGRAMS", "live_diagram", "live_l1", "live_motion", "live_phase", "live_sync"]
 
 #: How far back the inlets read a stream: a 100 Hz sample period plus transport and jitter, so that
 #: two received samples surround the time read and the blocks see the stream on a regular grid.
@@ -33,13 +35,16 @@ def _wire(arch: Block, port_in: str, port_out: str, inlet: LSLInlet, outlet: LSL
     return d
 
 
-def live_phase(in_stream: str, out_stream: str, *, unit: str = "mm", timeout: float = 5.0) -> Diagram:
+def live_phase(
+    in_stream: str, out_stream: str, *, unit: str = "mm", source_unit: str | None = None, timeout: float = 5.0
+) -> Diagram:
     """A 1-channel position stream in, its phase (:class:`~cogblocks.phase.PhaseEstimator`) out.
 
-    The inlet resamples the stream :data:`LAG` s back on the tick grid; the output stream (type
+    The inlet resamples the stream :data:`LAG` s back on the tick grid (converting a stream in m or cm
+    to ``unit``; ``source_unit`` is the unit of a stream that declares none); the output stream (type
     ``"Phase"``) carries ``theta`` in rad, wrapped to ``[0, 2π)``.
     """
-    inlet = LSLInlet(in_stream, unit=unit, mode="interpolate", lag=LAG, timeout=timeout)
+    inlet = LSLInlet(in_stream, unit=unit, source_unit=source_unit, mode="interpolate", lag=LAG, timeout=timeout)
     return _wire(PhaseEstimator(unit=unit), "p", "theta", inlet, LSLOutlet(out_stream, stream_type="Phase"))
 
 
@@ -65,7 +70,9 @@ def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = 
     for a group of Table 2 (its size fixes the channel count) with the motion computer ``motion``
     (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`, built by :func:`live_motion`;
     the trained DQN policy by default). The inlet resamples the phases :data:`LAG` s back on the tick grid, along
-    the circle.
+    the circle. Besides ``theta_l2`` and the inlet's ``sample``, ``age_ms`` and ``fresh``, the diagram shows
+    ``theta_l0`` (the assisted participant's phase), the blending's ``lam`` and ``r``, the order parameter of
+    the participants' phases as received.
     """
     if group not in TABLE2:
         raise ValueError(f"live_sync: group must be one of {sorted(TABLE2)}, got {group!r}")
@@ -76,22 +83,58 @@ def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = 
     inlet = LSLInlet(
         in_stream, shape=(params.n,), unit="rad", wrapped=True, mode="interpolate", lag=LAG, timeout=timeout
     )
-    return _wire(arch, "theta", "theta_l2", inlet, LSLOutlet(out_stream, stream_type="Phase"))
+    d = _wire(arch, "theta", "theta_l2", inlet, LSLOutlet(out_stream, stream_type="Phase"))
+    order = d.add("order", OrderParameter())
+    d.connect(inlet.y, order.theta)
+    d.expose_output("theta_l0", arch.theta_l0)
+    d.expose_output("lam", arch.lam)
+    d.expose_output("r", order.r)
+    return d
 
 
-def live_l1(in_stream: str, out_stream: str, *, delay: float = 0.1, unit: str = "mm", timeout: float = 5.0) -> Diagram:
+def live_l1(
+    in_stream: str,
+    out_stream: str,
+    *,
+    delay: float = 0.1,
+    unit: str = "mm",
+    source_unit: str | None = None,
+    timeout: float = 5.0,
+) -> Diagram:
     """A 3-channel marker stream in, the L1 avatar's delay-compensated 3D position out.
 
     ``delay`` is how late the stream's samples arrive. The inlet resamples the stream ``delay`` +
     :data:`LAG` s back on the tick grid, and :class:`~cogblocks.sensing.L1` (a constant-acceleration
     Kalman filter on three axes) predicts that far ahead; the output stream (type ``"MoCap"``) has
-    channels ``x``, ``y``, ``z``.
+    channels ``x``, ``y``, ``z``. ``unit`` and ``source_unit`` are as in :func:`live_phase`.
     """
     arch = L1(delay + LAG, estimator=KalmanEstimator("ca", dims=3, unit=unit))
-    inlet = LSLInlet(in_stream, shape=(3,), unit=unit, mode="interpolate", lag=delay + LAG, timeout=timeout)
+    inlet = LSLInlet(
+        in_stream, shape=(3,), unit=unit, source_unit=source_unit, mode="interpolate", lag=delay + LAG, timeout=timeout
+    )
     outlet = LSLOutlet(out_stream, stream_type="MoCap", channel_names=["x", "y", "z"])
     return _wire(arch, "p", "p_avatar", inlet, outlet)
 
 
 #: The ready live diagrams by the name ``cogblocks live`` gives them.
 LIVE_DIAGRAMS = {"phase": live_phase, "sync": live_sync, "l1": live_l1}
+
+
+def live_diagram(options: dict[str, Any]) -> Diagram:
+    """The ready diagram that ``options`` describe, as a session file keeps them.
+
+    Keys: ``diagram`` (a name of :data:`LIVE_DIAGRAMS`), ``in`` and ``out`` (stream names), and as they
+    apply ``timeout``, ``group`` and ``policy`` (sync), ``delay`` (l1), ``unit`` (the input's unit when the
+    stream declares none; phase and l1).
+    """
+    name = options.get("diagram")
+    if name not in LIVE_DIAGRAMS:
+        raise ValueError(f"live_diagram: diagram must be one of {sorted(LIVE_DIAGRAMS)}, got {name!r}")
+    kw: dict[str, Any] = {"timeout": options.get("timeout", 5.0)}
+    if name == "sync":
+        kw.update(group=options.get("group", 1), motion=options.get("policy", "dqn"))
+    else:
+        kw.update(source_unit=options.get("unit"))
+    if name == "l1":
+        kw.update(delay=options.get("delay", 0.1))
+    return LIVE_DIAGRAMS[name](options["in"], options["out"], **kw)

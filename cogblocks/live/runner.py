@@ -95,6 +95,7 @@ def run_realtime(
     record: bool = False,
     record_raw: bool = False,
     save: str | Path | None = None,
+    scope: Any = None,
 ) -> RealtimeReport:
     """Run a compiled diagram in real time: tick ``k`` starts at ``start + k / rate`` on ``perf_counter``.
 
@@ -116,6 +117,8 @@ def run_realtime(
         Record every sample that the diagram's :class:`~cogblocks.live.LSLInlet` blocks receive.
     save : str or Path, optional
         Write the report to this ``.npz`` file when the run ends (see :func:`save_report`).
+    scope : Scope, optional
+        A :class:`~cogblocks.live.scope.Scope` that each tick's outputs are pushed to (its page draws them).
 
     Returns
     -------
@@ -158,8 +161,11 @@ def run_realtime(
             out = compiled.step()
             ended = time.perf_counter()
             tick_s[i], start_s[i] = ended - began, began - deadline
-            late += ended > deadline + period
+            is_late = ended > deadline + period
+            late += is_late
             overruns += ended - began > period
+            if scope is not None:
+                scope.push((k0 + i) * compiled.dt, out, is_late)
             for age in ages:
                 if np.isfinite(age) and age > max_age:
                     max_age = float(age)

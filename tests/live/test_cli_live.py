@@ -128,3 +128,89 @@ def test_a_missing_input_stream_is_a_clear_error(lsl, stream_name, capsys):
     captured = capsys.readouterr()
     assert code == 2 and captured.out == ""
     assert f"cogblocks: error: inlet: no LSL stream with name '{stream_name}-nobody' found within 0.3 s" in captured.err
+
+
+def test_a_recorded_l1_session_replays_to_the_same_trace_and_json_keys(lsl, streamer, stream_name, tmp_path, capsys):
+    from cogblocks.cli import main
+
+    streamer(f"{stream_name}-m", lambda t: 0.1 * np.sin(2 * np.pi * np.array([0.5, 0.7, 0.9]) * t), 3, unit="m")
+    record, live_npz, replay_npz = tmp_path / "s.xdf", tmp_path / "live.npz", tmp_path / "replay.npz"
+    args = ["--in", f"{stream_name}-m", "--out", f"{stream_name}-av", "--duration", "1.5", "--delay", "0.05"]
+    code = main(["live", "l1", *args, "--record", str(record), "--save", str(live_npz), "--json"])
+    live = json.loads(capsys.readouterr().out)
+    assert code == 0 and record.is_file()
+    # the recorded options (streams, delay) are the defaults of the replay
+    code = main(["replay", str(record), "l1", "--save", str(replay_npz), "--json"])
+    replayed = json.loads(capsys.readouterr().out)
+    assert code == 0 and set(replayed) == set(live)
+    assert replayed["ticks"] == live["ticks"] == 150 and replayed["samples_in"] == live["samples_in"]
+    assert (replayed["late_ticks"], replayed["max_age_ms"]) == (live["late_ticks"], live["max_age_ms"])
+    with np.load(live_npz) as a, np.load(replay_npz) as b:
+        for name in ("t", "p_avatar", "sample", "age_ms", "fresh"):
+            np.testing.assert_array_equal(b[name], a[name], err_msg=name)
+        assert np.nanmax(np.abs(a["sample"])) > 50.0  # mm, converted from the stream's metres
+    # another delay replays the same samples through another diagram
+    assert main(["replay", str(record), "l1", "--delay", "0.02", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["ticks"] == 150
+
+
+def test_the_record_path_is_checked_before_the_run(lsl, stream_name, tmp_path, capsys):
+    from cogblocks.cli import main
+
+    bad = tmp_path / "missing" / "s.xdf"
+    code = main(["live", "phase", "--in", f"{stream_name}-x", "--out", "o", "--duration", "60", "--record", str(bad)])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert f"cogblocks: error: --record {bad}: the folder {bad.parent} does not exist" in captured.err
+    code = main(["live", "phase", "--in", "x", "--out", "o", "--duration", "1", "--record", str(tmp_path / "s.csv")])
+    assert code == 2 and "the file name must end in .xdf" in capsys.readouterr().err
+
+
+def test_view_serves_a_saved_trace_until_ctrl_c(tmp_path):
+    import urllib.request
+
+    t = 0.01 * np.arange(500)
+    np.savez(tmp_path / "run.npz", t=t, theta=np.mod(t, 2 * np.pi), tick_ms=np.ones(500), start_ms=np.zeros(500))
+    view = subprocess.Popen(
+        [sys.executable, "-m", "cogblocks.cli", "view", str(tmp_path / "run.npz"), "--port", "0"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        line = view.stdout.readline()
+        assert line.startswith(f"view of {tmp_path / 'run.npz'} at http://127.0.0.1:"), line + view.stderr.read()
+        url = line.split(" at ")[1].split()[0]
+        meta = json.loads(urllib.request.urlopen(url + "meta", timeout=10).read())
+        data = json.loads(urllib.request.urlopen(url + "data", timeout=10).read())
+        assert meta["mode"] == "view" and [p["series"] for p in meta["panels"]] == [["theta"], ["late"]]
+        assert data["t"] == t.tolist() and data["ticks"] == 500 and data["theta"][7] == [0.07]
+    finally:
+        view.send_signal(signal.SIGINT)
+        out, err = view.communicate(timeout=20)
+    assert view.returncode == 0, err
+
+
+def test_live_scope_serves_the_run_on_loopback(lsl, streamer, stream_name):
+    import urllib.request
+
+    streamer(f"{stream_name}-arm", lambda t: 150.0 * np.cos(2 * np.pi * t))
+    cli = _cli("phase", "--in", f"{stream_name}-arm", "--out", f"{stream_name}-ph", "--duration", "4", "--scope", "0")
+    try:
+        line = ""
+        while not line.startswith("scope at ") and cli.poll() is None:
+            line = cli.stderr.readline()  # after liblsl's own messages, if any
+        assert line.startswith("scope at http://127.0.0.1:"), line
+        url = line.split(" at ")[1].strip()
+        meta = json.loads(urllib.request.urlopen(url + "meta", timeout=10).read())
+        assert meta["mode"] == "live" and meta["title"] == "cogblocks live phase"
+        assert [p["series"] for p in meta["panels"]] == [["sample"], ["theta"], ["late"]]
+        with urllib.request.urlopen(url + "events", timeout=10) as events:
+            first = next(line for line in events if line.startswith(b"data: "))
+        rows = json.loads(first[len(b"data: ") :])
+        assert rows["ticks"] > 0 and len(rows["t"]) == len(rows["theta"]) == len(rows["sample"]) > 0
+    finally:
+        out, err = cli.communicate(timeout=60)
+    assert cli.returncode == 0, err
+    assert "400 ticks at 100 Hz" in out

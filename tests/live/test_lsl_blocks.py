@@ -30,9 +30,9 @@ def _inlets(name, **modes):
 
 
 def test_every_live_block_states_its_bad_data_policy(lsl):
-    from cogblocks.live import LSLInlet, LSLOutlet, OSCSender
+    from cogblocks.live import LSLInlet, LSLOutlet, OSCReceiver, OSCSender
 
-    for cls in (LSLInlet, LSLOutlet, OSCSender):
+    for cls in (LSLInlet, LSLOutlet, OSCReceiver, OSCSender):
         assert "Bad data policy" in inspect.getdoc(cls), cls.__name__
 
 
@@ -63,19 +63,71 @@ def test_a_missing_stream_is_named_in_the_error(lsl, stream_name):
 def test_channel_count_unit_and_format_are_checked_against_the_port(lsl, stream_name):
     keep = [
         _outlet(lsl, f"{stream_name}-two", channels=2),
-        _outlet(lsl, f"{stream_name}-cm", unit="cm"),
+        _outlet(lsl, f"{stream_name}-deg", unit="deg"),
         _outlet(lsl, f"{stream_name}-str", fmt=lsl.cf_string),
     ]
     with pytest.raises(DiagramError, match=r"has 2 channel\(s\), the port expects shape \(3,\) = 3 channel"):
         _inlets(f"{stream_name}-two", a={"shape": (3,), "unit": "mm"})
-    with pytest.raises(DiagramError, match=r"declares unit\(s\) \['cm'\], the port expects 'mm'"):
-        _inlets(f"{stream_name}-cm", a={"unit": "mm"})
+    with pytest.raises(
+        DiagramError, match=r"-deg' \(type 'MoCap'\) declares unit 'deg', the port expects 'mm' or a length"
+    ):
+        _inlets(f"{stream_name}-deg", a={"unit": "mm"})
+    with pytest.raises(DiagramError, match=r"declares unit 'deg', the port expects 'rad'$"):
+        _inlets(f"{stream_name}-deg", a={"unit": "rad"})
     with pytest.raises(DiagramError, match="carries strings"):
         _inlets(f"{stream_name}-str", a={})
     # a (2, 1) port takes the two-channel stream
     compiled, blocks = _inlets(f"{stream_name}-two", a={"shape": (2, 1), "unit": "mm"})
     assert blocks["a"].y.value.shape == (2, 1)
     del keep
+
+
+def _constant(lsl, outlet, value, stop):
+    def run():
+        while not stop.is_set():
+            outlet.push_sample([value], lsl.local_clock())
+            time.sleep(0.005)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
+
+
+def test_length_units_convert_and_a_stream_without_a_unit_is_named(lsl, stream_name):
+    stop = threading.Event()
+    outlets = {u: _outlet(lsl, f"{stream_name}-{u or 'none'}", unit=u) for u in ("m", "cm", "mm", "")}
+    threads = [_constant(lsl, outlet, 1.25, stop) for outlet in outlets.values()]
+    try:
+        from cogblocks.live import LSLInlet
+
+        d = Diagram()
+        for u in ("m", "cm", "mm"):
+            d.add(f"in_{u}", LSLInlet(f"{stream_name}-{u}", unit="mm", hold=1.0, timeout=2.0))
+        d.add("given", LSLInlet(f"{stream_name}-none", unit="mm", source_unit="m", hold=1.0, timeout=2.0))
+        d.add("to_m", LSLInlet(f"{stream_name}-cm", unit="m", hold=1.0, timeout=2.0))
+        with pytest.warns(UserWarning) as caught:
+            d.add("bare", LSLInlet(f"{stream_name}-none", unit="mm", hold=1.0, timeout=2.0))
+            compiled = d.compile(0.01)
+        (warning,) = caught
+        assert str(warning.message) == (
+            f"bare: LSL stream '{stream_name}-none' (type 'MoCap') declares no unit; its values are taken as 'mm' "
+            "(give the stream's unit as source_unit, --unit on the command line)"
+        )
+        for _ in range(200):
+            compiled.step()
+            out = {name: d[name].y.value.item() for name in ("in_m", "in_cm", "in_mm", "given", "to_m", "bare")}
+            if all(np.isfinite(v) for v in out.values()):
+                break
+            time.sleep(0.01)
+        assert out == {"in_m": 1250.0, "in_cm": 12.5, "in_mm": 1.25, "given": 1250.0, "to_m": 0.0125, "bare": 1.25}
+        d2 = Diagram()
+        d2.add("a", LSLInlet(f"{stream_name}-m", unit="mm", source_unit="cm", timeout=2.0))
+        with pytest.raises(DiagramError, match=r"declares unit\(s\) \['m'\]; source_unit 'cm' is for a stream"):
+            d2.compile(0.01)
+    finally:
+        stop.set()
+        for thread in threads:
+            thread.join()
 
 
 def _expected(at, stamps, values, hold):
@@ -158,14 +210,16 @@ def test_a_slow_first_pull_does_not_shift_the_interpolation_grid(lsl, stream_nam
     outlet = _outlet(lsl, stream_name)
     compiled, blocks = _inlets(stream_name, a={"unit": "mm", "mode": "interpolate", "lag": 0.02})
     inlet = blocks["a"]
-    pull = LSLInlet._pull
+    receive = LSLInlet._receive
+    calls = []
 
     def slow_first(self):
-        if self._ticks == 0:
+        if not calls:
             time.sleep(0.02)  # a busy machine holds up the first pull
-        return pull(self)
+        calls.append(1)
+        return receive(self)
 
-    monkeypatch.setattr(LSLInlet, "_pull", slow_first)
+    monkeypatch.setattr(LSLInlet, "_receive", slow_first)
     before = lsl.local_clock()
     compiled.step()
     # the grid starts when the tick did, not when its pull came back: the value is lag before the tick's start
