@@ -48,6 +48,7 @@ napoleon_numpy_docstring = True
 napoleon_google_docstring = False
 napoleon_use_rtype = False
 napoleon_use_ivar = True  # attributes as fields, so a dataclass field is not described twice
+napoleon_custom_sections = [("Ports", "params_style")]  # a block's ports, listed like its parameters
 
 html_theme = "alabaster"
 html_title = "cogblocks"
