@@ -15,6 +15,7 @@ import importlib
 import inspect
 import os
 import pkgutil
+import re
 import textwrap
 from pathlib import Path
 from typing import Any
@@ -162,30 +163,50 @@ def _source(node: ast.AST | None) -> str:
     return "" if node is None else ast.unparse(node)
 
 
-def _spec_fields(call: ast.Call) -> dict[str, str]:
+def _signal_fields(spec: ast.AST, namespace: dict[str, Any]) -> dict[str, str] | None:
+    """Shape, unit and wrapping of a spec expression, as source text; None when it is not a Signal.
+
+    ``Signal(...)`` is read field by field; a named spec (``PHASE``) is looked up in the block's
+    module; ``NAMED.with_(field=...)`` is the named spec with those fields replaced.
+    """
+    from cogblocks.sim import Signal
+
+    if isinstance(spec, ast.Call) and _source(spec.func).endswith("Signal"):
+        given = {kw.arg: _source(kw.value) for kw in spec.keywords}
+        for i, arg in enumerate(spec.args[:2]):
+            given[("shape", "dtype")[i]] = _source(arg)
+        defaults = {"shape": "()", "unit": "'1'", "wrapped": "False"}
+        return {f: given.get(f, defaults[f]) for f in _FIELDS}
+    if isinstance(spec, ast.Call) and isinstance(spec.func, ast.Attribute) and spec.func.attr == "with_":
+        base = _signal_fields(spec.func.value, namespace)
+        if base is None:
+            return None
+        return {**base, **{kw.arg: _source(kw.value) for kw in spec.keywords if kw.arg in _FIELDS}}
+    try:
+        value = eval(compile(ast.Expression(spec), "<spec>", "eval"), dict(namespace))  # a module constant
+    except Exception:  # computed from the block's parameters: shown as written
+        return None
+    if isinstance(value, Signal):
+        return {f: repr(getattr(value, f)) for f in _FIELDS}
+    return None
+
+
+def _spec_fields(call: ast.Call, namespace: dict[str, Any]) -> dict[str, str]:
     """The spec fields of one ``add_input``/``add_output`` call, as source text."""
     fields: dict[str, str] = {}
     spec = call.args[1] if len(call.args) > 1 else None
     for kw in call.keywords:
         if kw.arg == "spec":
             spec = kw.value
-    if isinstance(spec, ast.Call) and _source(spec.func).endswith("Signal"):
-        defaults = {"shape": "()", "unit": "'1'", "wrapped": "False"}
-        given = {kw.arg: _source(kw.value) for kw in spec.keywords}
-        for i, arg in enumerate(spec.args[:2]):
-            given[("shape", "dtype")[i]] = _source(arg)
-        fields.update({f: given.get(f, defaults[f]) for f in _FIELDS})
-    elif spec is not None:
-        fields["spec"] = _source(spec)
+    if spec is not None:
+        read = _signal_fields(spec, namespace)
+        if read is None:
+            fields["spec"] = _source(spec)
+        else:
+            fields.update(read)
     for kw in call.keywords:
-        if kw.arg in _FIELDS:
+        if kw.arg in _FIELDS or kw.arg in ("like", "feedthrough", "default"):
             fields[kw.arg] = _source(kw.value)
-        elif kw.arg == "like":
-            fields["like"] = _source(kw.value)
-        elif kw.arg == "feedthrough":
-            fields["feedthrough"] = _source(kw.value)
-        elif kw.arg == "default":
-            fields["default"] = _source(kw.value)
     return fields
 
 
@@ -219,19 +240,16 @@ def declared_ports(cls: type) -> list[dict[str, str]]:
             if (direction, label) in seen:
                 continue
             seen.add((direction, label))
-            ports.append({"port": str(label), "direction": direction, **_spec_fields(node)})
+            namespace = vars(importlib.import_module(klass.__module__))
+            ports.append({"port": str(label), "direction": direction, **_spec_fields(node, namespace)})
     return ports
 
 
 def _policy(cls: type) -> str:
-    """The docstring's bad-data policy paragraph, or an empty string."""
+    """The docstring's bad-data policy paragraph (from "Bad data policy:" to the next blank line), or ``""``."""
     doc = inspect.getdoc(cls) or ""
-    for para in doc.split("\n\n"):
-        text = " ".join(para.split())
-        low = text.lower()
-        if low.startswith("bad data policy") or low.startswith("bad-data policy") or low.startswith("bad data:"):
-            return text
-    return ""
+    match = re.search(r"Bad[ -]data policy:(.*?)(?:\n\s*\n|$)", doc, re.S | re.I)
+    return " ".join(match.group(1).split()) if match else ""
 
 
 class PortsDirective(Directive):
@@ -268,14 +286,15 @@ class PortsDirective(Directive):
                 if "default" in p:
                     notes.append(f"default ``{p['default']}``")
                 cells = [f"``{p['port']}``", p["direction"]]
-                cells += [f"``{p[f]}``" if f in p else "generic" for f in _FIELDS]
+                cells += [("any" if p[f] == "None" else f"``{p[f]}``") if f in p else "generic" for f in _FIELDS]
                 cells.append("; ".join(notes) or " ")
                 lines.append(f"   * - {cells[0]}")
                 lines += [f"     - {c}" for c in cells[1:]]
             lines += [
                 "",
                 "Shapes, units and wrapping written as an expression are computed from the "
-                "block's parameters; *generic* takes the spec of whatever drives the input.",
+                "block's parameters; *generic* takes the spec of whatever drives the input; *any* accepts "
+                "any value of that field.",
                 "",
             ]
         else:
