@@ -370,7 +370,9 @@ class CliDirective(Directive):
         for command, sub in _commands(parser, parser.prog):
             section = nodes.section(ids=[nodes.make_id(command)])
             section += nodes.title(text=command)
-            section += nodes.literal_block(text=sub.format_help())
+            block = nodes.literal_block(text=sub.format_help())
+            block["language"] = "text"  # help text, not Python: no highlighting
+            section += block
             out.append(section)
         return out
 
