@@ -107,7 +107,7 @@ def summarise(rows: list[dict[str, Any]], e_des: int) -> dict[str, Any]:
 
     ``all_members``: every constrained network decides ``e_des`` by the clipping rule (ε̂ > 0.9, < 0.1);
     ``flipped``: movements on which they do for the plan but not for the emitted movement.
-    ``feature_abs_diff``: per feature, the median and the 90th percentile of |emitted − planned|.
+    ``feature_abs_diff``: per feature, the median and the 90th percentile of ``|emitted − planned|``.
     ``committed``, ``failing_at_commit``: committed plans in all, and those failing their encoding constraint
     at the commit (rows without these counts are left out of them).
     """

@@ -56,7 +56,7 @@ class OptimalBlender(DecisionSolve, Block):
     A drop-in replacement for :class:`~cogblocks.amplification.VelocityBlender` (the same ports):
     ``pop_amplification(..., blending=OptimalBlender(library, encoder, table))``. Before the
     projector's first decision the human velocity passes through. At each decision (tick ``T``,
-    when ``decisions`` changes) the block solves with casadi
+    when ``decisions`` changes) the block solves with casadi::
 
         min  Σ_{T ≤ t < L} ‖u(t)‖² + ρ·s
         s.t. ±logit ε̂(R_L v_a) + s ≥ logit(0.9 + margin),  s ≥ 0      (encoding, 13b)

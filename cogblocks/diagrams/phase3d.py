@@ -128,7 +128,7 @@ def run_phase_chain(seed: int = 0, duration: float = 30.0, motion_computer: str 
     -------
     dict
         ``r_mean`` (order parameter with the avatar, once the estimate is valid), ``valid_from_s``,
-        ``mean_dev_rad`` / ``max_dev_rad`` (|θ_L2 − θ_L0| once valid) and
+        ``mean_dev_rad`` / ``max_dev_rad`` (``|θ_L2 − θ_L0|`` once valid) and
         ``avatar_path_mm`` (length of the avatar's path).
     """
     return chain_summary(generate_motion3d(seed, duration=duration), motion_computer)

@@ -62,7 +62,9 @@ class PhaseEstimator3D(Diagram):
     grid : int, optional
         Phase grid of the customised reference (see :class:`ReferenceCustomizer`).
 
-    Notes on units: every rule about time is given in seconds and converted with the step (``h``,
+    Notes
+    -----
+    Units: every rule about time is given in seconds and converted with the step (``h``,
     ``window``, ``velocity_weight``), so that the estimator behaves the same at 30 and 240 Hz; every
     rule about amplitude is relative to the signal's own scale (``start_speed`` to the spread of the
     samples before the motion, ``distance_floor`` to the customised reference's spread), so that with
@@ -71,8 +73,6 @@ class PhaseEstimator3D(Diagram):
     front end's noise defaults are in mm (not unit-free). The phase is anchored to the reference's
     phase coordinate (see :func:`anchored_reference`).
 
-    Notes
-    -----
     Bad data policy: a non-finite sample, or one beyond 1e100 (a corrupted number in any unit), gives a bad
     velocity inside, on which the period estimator skips the sample and the phase computer holds the phase; with
     ``velocity="kalman"`` the filter predicts through it instead. ``theta`` is never NaN.

@@ -511,9 +511,9 @@ def test_gain_unit_multiplies_the_input_unit():
 
 
 def test_textbook_pid_from_primitives_matches_its_recursion():
-    # the PID of docs/blocks.md, run as written there
-    text = (Path(__file__).parents[2] / "docs" / "blocks.md").read_text(encoding="utf-8")
-    code = re.search(r"### A textbook PID.*?```python\n(.*?)```", text, re.S).group(1)
+    # the PID of docs/how-to/write-a-block.md, run as written there
+    text = (Path(__file__).parents[2] / "docs" / "how-to" / "write-a-block.md").read_text(encoding="utf-8")
+    code = re.search(r"## A textbook PID.*?```python\n(.*?)```", text, re.S).group(1)
     namespace: dict = {}
     exec(code, namespace)
     kp, ki, kd, dt = 2.0, 0.7, 0.05, 0.01
