@@ -41,7 +41,7 @@ class GroupNoise:
     sigma : tuple of float
         Phase noise σ_i per participant, rad/√s (Euler–Maruyama: ``σ_i √dt ξ`` per step).
     drift_spread : tuple of float
-        Stationary standard deviation of each frequency's Ornstein–Uhlenbeck drift, as a fraction of ``|ω_i|``.
+        Stationary standard deviation of each frequency's Ornstein–Uhlenbeck drift, as a fraction of ``abs(ω_i)``.
     drift_tau : float
         Time constant of the drift, s.
     seed : int
@@ -208,7 +208,7 @@ SPLITS: dict[str, int] = {"train": 0, "validation": 1, "test": 2}
 
 
 #: Ranges of :func:`random_groups`' noise: σ_i log-uniform (rad/√s), drift spread uniform per participant
-#: (fraction of |ω_i|), drift time constant uniform per group (s).
+#: (fraction of abs(ω_i)), drift time constant uniform per group (s).
 NOISE_RANGES: dict[str, tuple[float, float]] = {
     "sigma": (0.05, 0.5),
     "drift_spread": (0.05, 0.15),
@@ -273,7 +273,7 @@ def random_groups(n: int, split: str = "train", seed: int = 0, *, noise: bool = 
     * assisted participant uniform;
     * with ``noise``, a :class:`GroupNoise` from a stream of its own (``spawn_key=(split, i, 1)``), so that the
       noisy group ``i`` is the noise-free group ``i`` (drawn exactly as without ``noise``) plus noise:
-      σ_i log-uniform in [0.05, 0.5] rad/√s, drift spread uniform in [5, 15] % of ``|ω_i|`` per participant,
+      σ_i log-uniform in [0.05, 0.5] rad/√s, drift spread uniform in [5, 15] % of ``abs(ω_i)`` per participant,
       drift time constant uniform in [5, 20] s, and the noise's seed (:data:`NOISE_RANGES`).
 
     Parameters

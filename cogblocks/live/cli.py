@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from cogblocks.cli_options import POLICY, STEP, write_safely
+from cogblocks.cli_options import POLICY, STEP, output_type, write_safely
 from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["add_live_parser"]
@@ -49,14 +49,9 @@ def _run_live(args: argparse.Namespace) -> int:
         from cogblocks.live.ready import live_diagram
         from cogblocks.live.runner import run_realtime, save_report
         from cogblocks.live.session import enable_recording, write_session
-        from cogblocks.live.xdf import RecordingError, check_output_path
+        from cogblocks.live.xdf import RecordingError
     except ImportError as exc:
         raise ValueError(f'cogblocks live needs the live extra: pip install -e ".[live]" ({exc})') from None
-    # outputs are checked before the run: a session is not run to be lost at its end
-    if args.record:
-        check_output_path(args.record, (".xdf",), "--record")
-    if args.save:
-        check_output_path(args.save, (".npz",), "--save")
     options = _options(args)
     try:
         compiled = live_diagram(options).compile(DT)
@@ -108,11 +103,8 @@ def _run_replay(args: argparse.Namespace) -> int:
         from cogblocks.live.ready import live_diagram
         from cogblocks.live.replay import load_session, replay_session
         from cogblocks.live.runner import save_report
-        from cogblocks.live.xdf import check_output_path
     except ImportError as exc:
         raise ValueError(f'cogblocks replay needs the live extra: pip install -e ".[live]" ({exc})') from None
-    if args.save:
-        check_output_path(args.save, (".npz",), "--save")
     session = load_session(args.file)
     recorded = session.options
     options = dict(recorded) if recorded.get("diagram") == args.diagram else {"diagram": args.diagram}
@@ -191,9 +183,16 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
         p.add_argument("--duration", type=STEP, required=True, metavar="S", help="seconds to run (Ctrl-C stops)")
         p.add_argument("--timeout", type=STEP, default=5.0, metavar="S", help="seconds to wait for the input stream")
         p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-        p.add_argument("--save", metavar="FILE", help="save the trace and the raw input samples to FILE (.npz)")
+        # outputs are checked before the run: a session is not run to be lost at its end
+        p.add_argument(
+            "--save",
+            type=output_type((".npz",)),
+            metavar="FILE",
+            help="save the trace and the raw input samples to FILE (.npz)",
+        )
         p.add_argument(
             "--record",
+            type=output_type((".xdf",)),
             metavar="FILE",
             help="record the session (every stream read and written, tick clocks) to FILE (.xdf, read by pyxdf)",
         )
@@ -219,7 +218,7 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
         p.add_argument("--in", dest="in_stream", metavar="STREAM", help="input stream (default: as recorded)")
         p.add_argument("--out", dest="out_stream", metavar="STREAM", help="output stream (default: as recorded)")
         p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-        p.add_argument("--save", metavar="FILE", help="save the trace to FILE (.npz)")
+        p.add_argument("--save", type=output_type((".npz",)), metavar="FILE", help="save the trace to FILE (.npz)")
         _diagram_options(p, name, replay=True)
         p.set_defaults(handler=_run_replay)
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FORMATS", "RecordingError", "XDFStream", "check_output_path", "write_xdf"]
+__all__ = ["FORMATS", "RecordingError", "XDFStream", "write_xdf"]
 
 #: XDF channel formats and their little-endian NumPy types.
 FORMATS = {
@@ -90,25 +90,6 @@ class XDFStream:
         if self.channel_format == "string":
             return len(self.values[0])
         return int(np.asarray(self.values).reshape(len(self.stamps), -1).shape[1])
-
-
-def check_output_path(path: str | os.PathLike, suffixes: Iterable[str], what: str) -> Path:
-    """Check before a run that ``path`` can be written: a known suffix, an existing writable folder, not a folder.
-
-    Raises ``ValueError`` naming ``what`` (the option), the path and what is allowed.
-    """
-    path = Path(path)
-    allowed = tuple(suffixes)
-    if path.suffix.lower() not in allowed:
-        raise ValueError(f"{what} {path}: the file name must end in {' or '.join(allowed)}")
-    if path.is_dir():
-        raise ValueError(f"{what} {path}: is a folder; give a file name")
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise ValueError(f"{what} {path}: the folder {folder} does not exist")
-    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise ValueError(f"{what} {path}: cannot write there (permission denied)")
-    return path
 
 
 def _varlen(n: int) -> bytes:

@@ -285,25 +285,14 @@ class Diagram(Block):
             old.name = name
             object.__setattr__(old, "_parent", parent)
             raise
-        for s_child, s_port, d_child, d_port in parent._wires:
-            if d_child == name and parent._children[s_child]._outputs[s_port].spec is not None:
-                src = parent._children[s_child]._outputs[s_port]
-                _check_specs(f"{s_child}.{s_port}", src.spec, f"{name}.{d_port}", block._inputs[d_port].spec)
-            if s_child == name and block._outputs[s_port].spec is not None:
-                _check_specs(
-                    f"{name}.{s_port}",
-                    block._outputs[s_port].spec,
-                    f"{d_child}.{d_port}",
-                    parent._children[d_child]._inputs[d_port].spec,
-                )
+        for s_child, s_port, d_child, d_port in parent._wires:  # the new block's wires meet the same specs
+            if name in (s_child, d_child) and (src := parent._children[s_child]._outputs[s_port]).spec is not None:
+                dst = parent._children[d_child]._inputs[d_port]
+                _check_specs(f"{s_child}.{s_port}", src.spec, f"{d_child}.{d_port}", dst.spec)
         parent._changed()
         if dropped:
-            warnings.warn(
-                f"replace({path!r}): the new {type(block).__name__} has no port(s) {dropped} of the old "
-                f"{type(old).__name__}; nothing was wired to them, so they are dropped",
-                UserWarning,
-                stacklevel=2,
-            )
+            what = f"the new {type(block).__name__} has no port(s) {dropped} of the old {type(old).__name__}"
+            warnings.warn(f"replace({path!r}): {what}; nothing was wired to them, so they are dropped", stacklevel=2)
         return old
 
     # -- compiling and running -----------------------------------------------
@@ -339,11 +328,8 @@ class Diagram(Block):
         """The current plan; without one, compile at the base step and warn that this will be an error."""
         if self._compiled is None:
             message = f"Diagram.{what} on a diagram with no current plan compiles it at the {BASE_STEP} s base step"
-            warnings.warn(
-                message + "; call diagram.compile(dt) first (this will raise in the next release)",
-                DeprecationWarning,
-                stacklevel=3,
-            )
+            warnings.warn(f"{message}; call diagram.compile(dt) first (this will raise in the next release)",
+                          DeprecationWarning, stacklevel=3)  # fmt: skip
             return self.compile()
         return self._compiled
 
@@ -395,9 +381,7 @@ class Diagram(Block):
     def draw(self, path: str | os.PathLike) -> None:
         """Draw the diagram to a file, by its suffix; see :func:`cogblocks.sim.render.draw`.
 
-        ``.dot``/``.gv`` (Graphviz text) and ``.mmd`` (Mermaid text) are always
-        written; ``.svg``, ``.png`` and ``.pdf`` are rendered by Graphviz's ``dot``
-        program, and refused with a clear message when it is not installed.
+        ``.dot``/``.gv`` and ``.mmd`` are always written; ``.svg``, ``.png`` and ``.pdf`` need Graphviz's ``dot``.
         """
         from cogblocks.sim.render import draw
 

@@ -150,9 +150,7 @@ class KuramotoGroup(Block):
     def _per_participant(self, name: str, value: Any) -> np.ndarray:
         array = finite_array(self, name, value)
         if array.shape not in ((), (self.n,)) or np.any(array < 0):
-            raise ValueError(
-                f"KuramotoGroup: {name} must be a number >= 0 or {self.n} numbers >= 0, got {np.asarray(value)!r}"
-            )
+            raise ValueError(f"KuramotoGroup: {name} must be a number >= 0 or {self.n} numbers >= 0, got {value!r}")
         return np.broadcast_to(array, (self.n,)).astype(float)
 
     def _init_noise(self, noise: Any, drift_spread: Any, drift_tau: float, seed: Any) -> None:
@@ -162,8 +160,9 @@ class KuramotoGroup(Block):
         if not self.drift_tau > 0:
             raise ValueError(f"KuramotoGroup: drift_tau must be > 0 s, got {drift_tau!r}")
         self.noisy = bool(self.noise.any() or self.drift_spread.any())
+        rng = random_generator(self, "seed", seed)  # checked even without noise: a bad seed is a mistake either way
         if self.noisy:
-            self.add_state("rng", random_generator(self, "seed", seed))
+            self.add_state("rng", rng)
             self.add_state("drift", np.zeros(self.n))
             self.add_scratch("_draw", np.zeros(2 * self.n))  # the tick's normal draws, a work buffer
 

@@ -161,9 +161,9 @@ def test_the_record_path_is_checked_before_the_run(lsl, stream_name, tmp_path, c
     code = main(["live", "phase", "--in", f"{stream_name}-x", "--out", "o", "--duration", "60", "--record", str(bad)])
     captured = capsys.readouterr()
     assert code == 2
-    assert f"cogblocks: error: --record {bad}: the folder {bad.parent} does not exist" in captured.err
+    assert "argument --record" in captured.err and "no folder" in captured.err and str(bad.parent) in captured.err
     code = main(["live", "phase", "--in", "x", "--out", "o", "--duration", "1", "--record", str(tmp_path / "s.csv")])
-    assert code == 2 and "the file name must end in .xdf" in capsys.readouterr().err
+    assert code == 2 and "ending in one of .xdf" in capsys.readouterr().err
 
 
 def test_view_serves_a_saved_trace_until_ctrl_c(tmp_path):

@@ -205,6 +205,11 @@ CASES = [
     case("KuramotoGroup", "assisted", 5, "[0, 1] or None"),
     case("KuramotoGroup", "theta0", [math.nan], "finite"),
     case("KuramotoGroup", "sparse", "yes", "True, False or None"),
+    case("KuramotoGroup", "noise", -0.1, "a number >= 0 or 2 numbers >= 0"),
+    case("KuramotoGroup", "noise", [0.1, 0.2, 0.3], "a number >= 0 or 2 numbers >= 0"),
+    case("KuramotoGroup", "drift_spread", [0.1, -0.1], "a number >= 0 or 2 numbers >= 0"),
+    case("KuramotoGroup", "drift_tau", 0.0, "> 0 s"),
+    case("KuramotoGroup", "seed", "x", "None, an int >= 0, a SeedSequence or a Generator"),
     case(
         "KuramotoGroup",
         "theta0",
