@@ -59,7 +59,7 @@ def _run_sync(args: argparse.Namespace) -> int:
         raise ValueError("--save-trace writes one run's trace: give exactly one --policy")
     if args.save_trace and (args.duration is not None or args.seed != 0):
         raise ValueError("--save-trace records the group's own run: drop --duration and --seed")
-    options = {"duration": args.duration, "seed": args.seed}
+    options = {"duration": args.duration, "seed": args.seed, "blender": args.blender}
     result: dict[str, Any] = {}
     for row in sync_table(group, motions, args.domain, **options):
         if not result:  # the first figure: r without L2
@@ -76,7 +76,7 @@ def _run_sync(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result), flush=True)
     if args.save_trace:
-        save_sync_trace(group, motions[0], args.domain, args.save_trace)
+        save_sync_trace(group, motions[0], args.domain, args.save_trace, blender=args.blender)
         print(f"wrote {args.save_trace}", file=sys.stderr, flush=True)
     _plot(args.plot, lambda path: plot_sync(group, motions[0], path, domain=args.domain, **options))
     return 0
@@ -96,6 +96,7 @@ def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
         args.seed,
         motions,
         workers=args.workers,
+        blender=args.blender,
         max_duration=args.max_duration,
         details=bool(args.plot),
         split=args.split,
@@ -289,6 +290,13 @@ def _build_parser() -> argparse.ArgumentParser:
         metavar="NAME",
         help="motion computer(s) to run: dqn, dqn_raw, guard, lookahead, mean, mpc, pace, plan, replan "
         "(default: dqn, lookahead, mean; with --random every one); repeatable",
+    )
+    sync.add_argument(
+        "--blender",
+        choices=("continuous", "deliverable"),
+        default="continuous",
+        help="'continuous': the avatar never jumps (the alteration unwrapped and slew-limited); 'deliverable': "
+        "the deliverable's exact blender, as in its Table 3 (default 'continuous')",
     )
     sync.add_argument(
         "--domain",

@@ -44,7 +44,7 @@ from cogblocks.sync.blender import Blender
 from cogblocks.sync.group import KuramotoGroup
 from cogblocks.sync.model import DT, BlenderParams
 from cogblocks.sync.order import OrderParameter
-from cogblocks.sync.whole_run import CHUNK, alteration_rollout, sweep, sweep_ticks, tick_model
+from cogblocks.sync.whole_run import CHUNK, alteration_rollout, initial_state, sweep, sweep_ticks, tick_model
 
 __all__ = [
     "THOROUGH",
@@ -70,7 +70,7 @@ def resimulate(
     select = d.add("select_l0", Select(group.assisted))
     blend = d.add(
         "blender",
-        Blender(params.lambda_min, params.lambda_max, params.e_max, params.kappa_up, params.kappa_down),
+        Blender(params=params),
     )
     seen = d.add("seen", Substitute(group.assisted))
     order = d.add("order", OrderParameter())
@@ -165,7 +165,7 @@ def windowed_control_bound(
     tick = tick_model(group, a, params)
     roll = tick.mapaccum("roll", CHUNK)
     s, starts, start_ref = start_references(group, a, n_steps, params)
-    x_init = np.r_[np.zeros(group.n), params.lambda_max]
+    x_init = initial_state(np.zeros(group.n), params.lam_max, params)
     states, r = alteration_rollout(roll, x_init, s)
     for name, (s_policy, policy_ref) in policy_starts(group, a, params, duration, pace, guard).items():
         states_policy, r_policy = alteration_rollout(roll, x_init, s_policy)

@@ -17,7 +17,7 @@ import numpy as np
 
 from cogblocks.analysis.sync_bound import upper_bound
 from cogblocks.data.groups import SyncGroup, random_groups
-from cogblocks.diagrams.sync import MOTIONS, run_sync
+from cogblocks.diagrams.sync import DEFAULT_BLENDER, MOTIONS, run_sync
 
 __all__ = ["evaluate_group", "heldout_table", "plot_heldout", "summarise"]
 
@@ -26,7 +26,9 @@ __all__ = ["evaluate_group", "heldout_table", "plot_heldout", "summarise"]
 MIN_HEADROOM = 1e-3
 
 
-def evaluate_group(group: SyncGroup, policies: list[str], bound: bool = True, thorough: bool = False) -> dict[str, Any]:
+def evaluate_group(
+    group: SyncGroup, policies: list[str], bound: bool = True, thorough: bool = False, blender: str = DEFAULT_BLENDER
+) -> dict[str, Any]:
     """One group: r without L2, the bound, and per policy r with L2, the change and the deviations.
 
     Returns
@@ -37,7 +39,7 @@ def evaluate_group(group: SyncGroup, policies: list[str], bound: bool = True, th
         (``None`` without headroom, and ``r_bound`` and every fraction ``None`` with ``bound=False``).
         ``thorough`` computes the thorough bound (``upper_bound(thorough=True)``, about 3× the CPU).
     """
-    result = run_sync(group, policies)
+    result = run_sync(group, policies, blender=blender)
     r_without = result["r_without"]
     # without the pace start unless thorough: it would cost as much again
     r_bound = upper_bound(group, pace=False, thorough=thorough) if bound else None
@@ -88,6 +90,7 @@ def heldout_table(
     split: str = "test",
     bound: bool = True,
     thorough: bool = False,
+    blender: str = DEFAULT_BLENDER,
 ) -> dict[str, Any]:
     """Evaluate ``policies`` (all of :data:`MOTIONS` by default) on ``n_groups`` groups of ``split`` and ``seed``.
 
@@ -115,6 +118,8 @@ def heldout_table(
     thorough : bool
         The thorough bound instead (:func:`~cogblocks.analysis.sync_bound.upper_bound` with ``thorough=True``):
         the ``pace`` and default policies' references as starts and four sweeps, about 3× the CPU.
+    blender : {"continuous", "deliverable"}
+        The blender of every closed loop (:func:`~cogblocks.diagrams.sync.pop_sync`'s); the bound is the deliverable's.
 
     Returns
     -------
@@ -136,12 +141,12 @@ def heldout_table(
             raise ValueError(f"max_duration must be positive, got {max_duration}")
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
     if workers == 1:
-        rows = [evaluate_group(group, policies, bound, thorough) for group in groups]
+        rows = [evaluate_group(group, policies, bound, thorough, blender) for group in groups]
     else:
         from joblib import Parallel, delayed
 
         rows = Parallel(n_jobs=workers, backend="loky")(
-            delayed(evaluate_group)(g, policies, bound, thorough) for g in groups
+            delayed(evaluate_group)(g, policies, bound, thorough, blender) for g in groups
         )
     table: dict[str, Any] = {"n_groups": len(groups), "seed": seed, "policies": summarise(rows, policies)}
     if details:

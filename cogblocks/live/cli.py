@@ -22,7 +22,7 @@ def _run_live(args: argparse.Namespace) -> int:
 
     options: dict[str, Any] = {"timeout": args.timeout}
     if args.diagram == "sync":
-        options.update(group=args.group, motion=args.policy)
+        options.update(group=args.group, motion=args.policy, blender=args.blender)
     elif args.diagram == "l1":
         options.update(delay=args.delay)
     try:
@@ -78,6 +78,13 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
                 type=POLICY,
                 default="dqn",
                 help="motion computer, e.g. dqn, lookahead or mean (default dqn)",
+            )
+            p.add_argument(
+                "--blender",
+                choices=("continuous", "deliverable"),
+                default="continuous",
+                help="'continuous': the avatar never jumps; 'deliverable': the deliverable's exact blender "
+                "(default 'continuous')",
             )
         if name == "l1":
             p.add_argument("--delay", type=float, default=0.1, help="delay to compensate, seconds (default 0.1)")

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from cogblocks.data.groups import TABLE2, SyncGroup
-from cogblocks.diagrams.sync import MOTIONS
+from cogblocks.diagrams.sync import DEFAULT_BLENDER, MOTIONS
 from cogblocks.live.inlet import LSLInlet
 from cogblocks.live.outlet import LSLOutlet
 from cogblocks.phase import PhaseEstimator
 from cogblocks.sensing import L1, KalmanEstimator
 from cogblocks.sim import Block, Diagram
-from cogblocks.sync import L2Sync
+from cogblocks.sync import Blender, L2Sync
+from cogblocks.sync.blending import blender_params
 
 __all__ = ["LAG", "LIVE_DIAGRAMS", "live_l1", "live_motion", "live_phase", "live_sync"]
 
@@ -58,21 +59,30 @@ def live_motion(name: str, group: SyncGroup) -> Block:
     return MOTIONS[name](group)
 
 
-def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = "dqn", timeout: float = 5.0) -> Diagram:
+def live_sync(
+    in_stream: str,
+    out_stream: str,
+    *,
+    group: int = 1,
+    motion: str = "dqn",
+    timeout: float = 5.0,
+    blender: str = DEFAULT_BLENDER,
+) -> Diagram:
     """The participants' phases in (one channel each, rad), the avatar's phase θ_L2 out.
 
     The L2 architecture of the PoP of Social Connectedness (:class:`~cogblocks.sync.L2Sync`)
     for a group of Table 2 (its size fixes the channel count) with the motion computer ``motion``
     (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`, built by :func:`live_motion`;
-    the trained DQN policy by default). The inlet resamples the phases :data:`LAG` s back on the tick grid, along
-    the circle.
+    the trained DQN policy by default), behind ``blender`` (``"continuous"``, whose avatar never jumps, or
+    ``"deliverable"``, the deliverable's exact blender). The inlet resamples the phases :data:`LAG` s back on the
+    tick grid, along the circle.
     """
     if group not in TABLE2:
         raise ValueError(f"live_sync: group must be one of {sorted(TABLE2)}, got {group!r}")
     params = TABLE2[group]
     if motion not in MOTIONS:
         raise ValueError(f"live_sync: motion must be one of {sorted(MOTIONS)}, got {motion!r}")
-    arch = L2Sync(live_motion(motion, params), params.assisted)
+    arch = L2Sync(live_motion(motion, params), params.assisted, Blender(params=blender_params("live_sync", blender)))
     inlet = LSLInlet(
         in_stream, shape=(params.n,), unit="rad", wrapped=True, mode="interpolate", lag=LAG, timeout=timeout
     )

@@ -6,6 +6,7 @@ from cogblocks.blocks import Select
 from cogblocks.sim import Block, Diagram
 from cogblocks.sim.params import block_with_ports, positive_int
 from cogblocks.sync.blender import Blender
+from cogblocks.sync.blending import BlenderParams
 
 __all__ = ["L2Sync"]
 
@@ -32,7 +33,10 @@ class L2Sync(Diagram):
         0-based index of the assisted participant; the motion computer's own, if it has one.
     blender : Block, optional
         A blending rule with the ports of :class:`~cogblocks.sync.Blender` (``theta_l0``,
-        ``theta_ref`` → ``theta_l2``, ``lam``); the deliverable's blender by default.
+        ``theta_ref`` → ``theta_l2``, ``lam``); the deliverable's blender by default. Its
+        ``params`` (a :class:`~cogblocks.sync.blending.BlenderParams`), if it has them, are handed
+        to the motion computer's ``plan_through``: a motion computer that predicts plans through
+        the blender actually in the diagram.
 
     Notes
     -----
@@ -56,6 +60,10 @@ class L2Sync(Diagram):
         select = self.add("select_l0", Select(assisted))
         self.add("motion", motion)
         blend = self.add("blender", blender if blender is not None else Blender())
+        # a motion computer that predicts plans through the blender it sits behind, whichever was swapped in
+        params = getattr(blend, "params", None)
+        if isinstance(params, BlenderParams) and callable(getattr(motion, "plan_through", None)):
+            motion.plan_through(params)
         self.connect(select.y, blend.theta_l0)
         self.connect(motion.theta_ref, blend.theta_ref)
         self.connect(blend.lam, motion.lam)

@@ -24,9 +24,9 @@ from cogblocks.blocks.angles import wrap_angle
 from cogblocks.blocks.specs import PHASE
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, positive_int
+from cogblocks.sync.blending import BlenderParams, blender_params
 from cogblocks.sync.coupling import Coupling, checked_graph
 from cogblocks.sync.identification import KuramotoRLS
-from cogblocks.sync.model import BlenderParams
 
 __all__ = [
     "ACTIONS",
@@ -124,12 +124,18 @@ class _MotionPorts(Block):
 
     _theta_feedthrough = True
 
+    def plan_through(self, blender: BlenderParams) -> None:
+        """Take the parameters of the blender the block works behind (:class:`~cogblocks.sync.L2Sync` calls this).
+
+        A motion computer that predicts through the blender plans with them; one that does not ignores them."""
+
 
 class _IdentifyingMotion(_MotionPorts):
     """The ports, and what every motion computer that identifies the group online shares.
 
     ``adjacency`` (a graph spec) becomes the dense matrix the models run on, ``blender`` (a
-    :class:`~cogblocks.sync.model.BlenderParams`, the deliverable's by default) the blender they plan through,
+    :class:`~cogblocks.sync.blending.BlenderParams` or a name of ``BLENDERS``, the deliverable's by default; in a
+    diagram, the blender it sits behind: :meth:`plan_through`) the blender they plan through,
     and :class:`~cogblocks.sync.identification.KuramotoRLS` the identifier, whose sums ``info`` and ``rhs`` and
     count of increments ``count`` are block state, so that a snapshot holds what has been identified.
     """
@@ -140,13 +146,21 @@ class _IdentifyingMotion(_MotionPorts):
         super().__init__(n, assisted, period)
         coupling = Coupling(checked_graph(self, adjacency, self.n), self.n, sparse=False)
         self.adjacency = np.asarray(coupling.matrix, dtype=float)
-        if blender is not None and not isinstance(blender, BlenderParams):
-            raise ValueError(f"{type(self).__name__}: blender must be a BlenderParams, got {type(blender).__name__}")
-        self.blender: BlenderParams = blender or BlenderParams()
+        self._blender_given = blender is not None
+        self.blender: BlenderParams = blender_params(type(self).__name__, blender)
         self.rls = KuramotoRLS(self.adjacency, forgetting=forgetting)
         self.add_state("count", 0)  # increments identified
         self.add_state("info", self.rls.info)
         self.add_state("rhs", self.rls.rhs)
+
+    def plan_through(self, blender: BlenderParams) -> None:
+        """Plan through ``blender``, the blender in the diagram; refused if the block was built with another."""
+        if self._blender_given and blender != self.blender:
+            raise ValueError(
+                f"{type(self).__name__}: built to plan through {self.blender}, but the diagram's blender is {blender}; "
+                "leave the motion computer's blender out and the diagram hands it the one it has"
+            )
+        self.blender = blender
 
     def identifier(self) -> KuramotoRLS:
         """The identifier, on this tick's state (a restored snapshot replaces the state's arrays)."""

@@ -273,7 +273,7 @@ class MPCMotion(_IdentifyingMotion):
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
         good = usable_phases(theta) and math.isfinite(lam)
         # the real blender's λ never leaves its range; a value outside is a glitch the model must not divide by
-        lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max) if good else lam
+        lam = min(max(lam, self.blender.lam_min), self.blender.lam_max) if good else lam
         if good:
             self._identify(theta, lam)
         if k % self.replan_every == 0:

@@ -277,7 +277,7 @@ class ShieldedMotion(PacingMotion):
             self.previous[...] = math.nan
             self.theta_l3 = wrap_angle(self.theta_l3 + dt * self.omega_prev)
         else:
-            clipped = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
+            clipped = min(max(lam, self.blender.lam_min), self.blender.lam_max)
             ref = self.theta_l3 if self.mode == FOLLOW else float(theta[self.assisted])
             self._identify(theta, clipped, ref, dt)
             if self.due:
