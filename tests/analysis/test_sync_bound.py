@@ -39,5 +39,9 @@ def test_bound_is_below_one_and_above_every_constant_reference(bounded):
 @pytest.mark.parametrize("motion", ["mean", "lookahead", "mpc", "pace"])
 def test_bound_is_above_the_policies(bounded, motion):
     group, bound = bounded
-    r = float(Simulator(pop_sync(group, motion=motion, blender="deliverable")).run(n_steps=round(DURATION / DT) + 1)["r"].mean())
+    r = float(
+        Simulator(pop_sync(group, motion=motion, blender="deliverable"))
+        .run(n_steps=round(DURATION / DT) + 1)["r"]
+        .mean()
+    )
     assert r <= bound, f"{motion}: {r} above the bound {bound}"

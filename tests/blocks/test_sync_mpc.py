@@ -97,7 +97,9 @@ def test_mpc_with_the_true_model_and_by_name():
 def test_mpc_reference_is_continuous_after_the_first_plan():
     group = TABLE2[1]
     mpc = MPCMotion(group.n, group.assisted)
-    ref = Simulator(pop_sync(group, motion=mpc, blender="deliverable"), probes=["l2.theta_ref"]).run(n_steps=301)["l2.theta_ref"]
+    ref = Simulator(pop_sync(group, motion=mpc, blender="deliverable"), probes=["l2.theta_ref"]).run(n_steps=301)[
+        "l2.theta_ref"
+    ]
     jumps = np.abs(np.angle(np.exp(1j * np.diff(ref[10:]))))
     assert jumps.max() <= 0.01 * 15.0 + 1e-9  # |ω_ref| ≤ 15 rad/s
 

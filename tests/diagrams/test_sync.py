@@ -154,7 +154,9 @@ def test_blender_unstable_rate_refused_in_ready_diagram():
 def test_position_domain_estimates_phases_from_arm_positions():
     n = 1001
     probes = {"est": "sensing.theta_hat", "true": "group.theta", "p": "sensing.p"}
-    trace = Simulator(pop_sync(1, motion="mean", domain="position", blender="deliverable"), probes=probes).run(n_steps=n)
+    trace = Simulator(pop_sync(1, motion="mean", domain="position", blender="deliverable"), probes=probes).run(
+        n_steps=n
+    )
     # arm positions are cosines of the true phases (150 mm, 1 mm noise)
     np.testing.assert_allclose(trace["p"], 150 * np.cos(trace["true"]), atol=6.0)
     err = np.abs(np.angle(np.exp(1j * (trace["est"] - trace["true"]))))

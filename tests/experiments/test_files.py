@@ -76,7 +76,12 @@ def test_nested_diagrams_periods_and_exposed_ports(tmp_path):
 def test_position_domain_with_nested_sensing(tmp_path):
     built = pop_sync(1, domain="position", seed=3, blender="deliverable")
     loaded = load_diagram(save_diagram(built, tmp_path / "sync.json"))
-    trace = same_run(pop_sync(1, domain="position", seed=3, blender="deliverable"), loaded, 300, probes=["sensing.theta_hat", "sensing.p"])
+    trace = same_run(
+        pop_sync(1, domain="position", seed=3, blender="deliverable"),
+        loaded,
+        300,
+        probes=["sensing.theta_hat", "sensing.p"],
+    )
     assert np.ptp(trace["sensing.p"]) > 100  # noisy arm positions, drawn from the seed
 
 
@@ -163,7 +168,9 @@ class HoldPolicy:
 @pytest.mark.parametrize("motion", ["dqn_raw", "lookahead"])
 def test_l3_policies_are_stored(tmp_path, motion):
     loaded = load_diagram(save_diagram(pop_sync(1, motion=motion, blender="deliverable"), tmp_path / "sync.json"))
-    assert type(loaded["l2.motion"].policy) is type(pop_sync(1, motion=motion, blender="deliverable")["l2.motion"].policy)
+    assert type(loaded["l2.motion"].policy) is type(
+        pop_sync(1, motion=motion, blender="deliverable")["l2.motion"].policy
+    )
     trace = same_run(pop_sync(1, motion=motion, blender="deliverable"), loaded, 150, probes=["l2.theta_ref"])
     assert np.ptp(trace["l2.theta_ref"]) > 1
 

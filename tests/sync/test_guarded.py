@@ -94,7 +94,9 @@ def _closed_loop(group: SyncGroup, block: GuardedPacingMotion, seconds: float, r
 
     block.update = counted
     probes = {"ref": "l2.theta_ref", "l0": "l2.theta_l0"}
-    return Simulator(pop_sync(group, motion=block, blender="deliverable"), probes=probes).run(n_steps=round(seconds / 0.01) + 1)
+    return Simulator(pop_sync(group, motion=block, blender="deliverable"), probes=probes).run(
+        n_steps=round(seconds / 0.01) + 1
+    )
 
 
 def test_work_per_tick_is_bounded_and_a_decision_applies_one_period_after_it_starts():

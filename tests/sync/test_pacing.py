@@ -119,7 +119,9 @@ def test_nothing_is_done_when_no_candidate_is_predicted_clearly_better():
 
 def _closed_loop(group: SyncGroup, block: PacingMotion, seconds: float):
     probes = {"ref": "l2.theta_ref", "l0": "l2.theta_l0", "l2": "l2.theta_l2"}
-    return Simulator(pop_sync(group, motion=block, blender="deliverable"), probes=probes).run(n_steps=round(seconds / 0.01) + 1)
+    return Simulator(pop_sync(group, motion=block, blender="deliverable"), probes=probes).run(
+        n_steps=round(seconds / 0.01) + 1
+    )
 
 
 def test_it_identifies_the_group_online_and_decides_every_period():

@@ -57,7 +57,9 @@ def test_the_plan_raises_r_over_doing_nothing_and_over_the_mean_rule_from_the_sa
     assert with_l2.mean() > without.mean() + 0.02
     # independent of the plan: the mean rule held from the planned state on the true group
     a = GROUP.adjacency()
-    sim = Simulator(pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"l0": "l2.theta_l0", "th": "group.theta"})
+    sim = Simulator(
+        pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"l0": "l2.theta_l0", "th": "group.theta"}
+    )
     theta = sim.run(n_steps=block.plan_start + 1)["th"][-1]
     lam = BLENDER.lam_max  # nothing altered before the plan: λ is still at its start
     rules = (np.array([0, 1]), np.zeros(2), np.zeros(2))

@@ -31,7 +31,9 @@ def _block(**options) -> RecedingPlanMotion:
 
 
 def _run(block: RecedingPlanMotion, l2: bool = True, n_steps: int = N_TICKS) -> dict:
-    return Simulator(pop_sync(GROUP, l2=l2, motion=block, blender="deliverable"), probes=PROBES if l2 else {}).run(n_steps=n_steps)
+    return Simulator(pop_sync(GROUP, l2=l2, motion=block, blender="deliverable"), probes=PROBES if l2 else {}).run(
+        n_steps=n_steps
+    )
 
 
 def _wrap(x: np.ndarray) -> np.ndarray:
@@ -69,7 +71,9 @@ def test_the_plans_raise_r_over_doing_nothing_and_over_the_mean_rule_from_the_sa
     np.testing.assert_allclose(with_l2[:200], without[:200], rtol=0, atol=1e-12)
     assert with_l2.mean() > without.mean() + 0.02
     # independent of the plans: doing nothing and the mean rule from tick 200's state on the true group
-    theta = Simulator(pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"th": "group.theta"}).run(n_steps=201)["th"][-1]
+    theta = Simulator(pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"th": "group.theta"}).run(
+        n_steps=201
+    )["th"][-1]
     rules = (np.array([0, 1]), np.zeros(2), np.zeros(2))
     sums, _ = rule_rollouts(
         GROUP, GROUP.adjacency(), BLENDER, np.r_[theta, BLENDER.lam_max], rules, N_TICKS - 200, record=False
@@ -201,7 +205,10 @@ def test_past_the_plan_in_force_a_decision_expects_the_best_rule_not_nothing():
     runs = {}
     for extend in ("rule", "nothing"):
         block = _block(horizon=1.0, sweeps=(), extend=extend)
-        runs[extend] = (block, Simulator(pop_sync(GROUP, motion=block, blender="deliverable"), probes=probes).run(n_steps=N_TICKS))
+        runs[extend] = (
+            block,
+            Simulator(pop_sync(GROUP, motion=block, blender="deliverable"), probes=probes).run(n_steps=N_TICKS),
+        )
     block, trace = runs["rule"]
     others = np.delete(trace["theta"], GROUP.assisted, axis=1)
     mean = np.angle(np.exp(1j * others).sum(axis=1))

@@ -141,7 +141,9 @@ def test_margin_choice_never_leaves_doing_nothing_for_a_candidate_predicted_belo
 def _recorded(group: SyncGroup, seconds: float) -> tuple[np.ndarray, np.ndarray]:
     """Phases and λ of a closed loop under the circular mean, to feed a motion computer open loop."""
     probes = {"theta": "group.theta", "lam": "l2.blender.lam"}
-    trace = Simulator(pop_sync(group, motion="mean", blender="deliverable"), probes=probes).run(n_steps=round(seconds / 0.01))
+    trace = Simulator(pop_sync(group, motion="mean", blender="deliverable"), probes=probes).run(
+        n_steps=round(seconds / 0.01)
+    )
     return trace["theta"], trace["lam"]
 
 
