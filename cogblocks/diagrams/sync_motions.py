@@ -10,7 +10,7 @@ import numpy as np
 
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sim import Block
-from cogblocks.sync import MeanPhaseMotion, MotionComputer
+from cogblocks.sync import MeanPhaseMotion, OscillatorMotion
 
 __all__ = ["DEFAULT_MOTION", "DEFAULT_MOTIONS", "MOTIONS"]
 
@@ -20,7 +20,7 @@ def _mean_motion(group: SyncGroup) -> Block:
 
 
 def _l3_motion(group: SyncGroup, policy: Any) -> Block:
-    return MotionComputer(
+    return OscillatorMotion(
         policy,
         n=group.n,
         assisted=group.assisted,

@@ -28,7 +28,7 @@ class L2Sync(Diagram):
     ----------
     motion : Block
         A motion computer (ports ``theta``, ``lam`` → ``theta_ref``), e.g.
-        :class:`~cogblocks.sync.MotionComputer`.
+        :class:`~cogblocks.sync.MeanPhaseMotion` (the role: :class:`~cogblocks.sync.MotionComputer`).
     assisted : int
         0-based index of the assisted participant; the motion computer's own, if it has one.
     blender : Block, optional

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from cogblocks.data.groups import SyncGroup
@@ -46,6 +48,10 @@ class LookaheadPolicy:
     ) -> LookaheadPolicy:
         """Look-ahead with an exact model of a group (on its graph) and the given blender."""
         return cls(SyncModel.from_group(group, blender=blender), horizon, replan_every)
+
+    def plan_through(self, blender: BlenderParams) -> None:
+        """Predict through ``blender``, the blender of the diagram the policy's motion computer sits in."""
+        self.model = dataclasses.replace(self.model, blender=blender)
 
     def reset(self, omega_init: float) -> None:
         """Forget the last plan."""

@@ -233,6 +233,11 @@ class MPCMotion(_IdentifyingMotion):
         self.solve_ms: list[float] = []
         self.tick_ms: list[float] = []
 
+    @property
+    def decision_period(self) -> float:
+        """Seconds between plans: ``replan_every`` ticks of the block's step (10 ms before compiling)."""
+        return self.replan_every * (self.dt * self.every if getattr(self, "dt", None) else 0.01)
+
     def setup(self) -> None:
         period = self.replan_every * self.dt * self.every
         steps = round(period / self.step)

@@ -245,6 +245,11 @@ class PacingMotion(_IdentifyingMotion):
         self.decide_ms: list[float] = []
         self.choices: list[int] = []
 
+    @property
+    def decision_period(self) -> float:
+        """Seconds between decisions: ``decide_every`` ticks of the block's step (10 ms before compiling)."""
+        return self.decide_every * (self.dt * self.every if getattr(self, "dt", None) else 0.01)
+
     def reset(self) -> None:
         super().reset()
         self.decide_ms, self.choices = [], []

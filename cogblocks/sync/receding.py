@@ -190,6 +190,11 @@ class RecedingPlanMotion(_IdentifyingMotion):
         self.plans: list[tuple[int, np.ndarray, np.ndarray]] = []
         self.late = 0
 
+    @property
+    def decision_period(self) -> float:
+        """Seconds between decisions (``decide_every``)."""
+        return self.decide_ticks * DT
+
     def reset(self) -> None:
         super().reset()
         self._future = None
