@@ -291,13 +291,8 @@ def _build_parser() -> argparse.ArgumentParser:
         help="motion computer(s) to run: dqn, dqn_raw, guard, lookahead, mean, mpc, pace, plan, replan "
         "(default: dqn, lookahead, mean; with --random every one); repeatable",
     )
-    sync.add_argument(
-        "--blender",
-        choices=("continuous", "deliverable"),
-        default="continuous",
-        help="'continuous': the avatar never jumps (the alteration unwrapped and slew-limited); 'deliverable': "
-        "the deliverable's exact blender, as in its Table 3 (default 'continuous')",
-    )
+    blenders = "'continuous': the avatar never jumps; 'deliverable': the deliverable's, as in Table 3"
+    sync.add_argument("--blender", choices=("continuous", "deliverable"), default="continuous", help=blenders)
     sync.add_argument(
         "--domain",
         choices=("phase", "position"),

@@ -139,11 +139,12 @@ class MotionComputer(Block):
     planner), :class:`~cogblocks.sync.mpc.MPCMotion`, and the shield
     :class:`~cogblocks.sync.shielded.ShieldedMotion` around an oscillator; ``cogblocks.diagrams.sync.MOTIONS``
     names their presets. ``MotionComputer(policy, n=..., ...)``, the name's earlier meaning, still builds
-    an :class:`OscillatorMotion`, with a :class:`DeprecationWarning`.
+    an :class:`OscillatorMotion`, with a :class:`DeprecationWarning`; ``MotionComputer(n, assisted)`` is a
+    block with the role's ports that holds θ_ref at 0.
     """
 
     def __new__(cls, *args: Any, **kwargs: Any) -> MotionComputer:
-        if cls is MotionComputer:
+        if cls is MotionComputer and ("policy" in kwargs or (args and callable(getattr(args[0], "act", None)))):
             warnings.warn(
                 "MotionComputer(policy, ...) is now OscillatorMotion(policy, ...); MotionComputer names the role",
                 DeprecationWarning,
