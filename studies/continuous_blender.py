@@ -8,7 +8,7 @@ avatar running more than 5 rad/s off the person's pace).
     python studies/continuous_blender.py --split validation --groups 5 --max-duration 30 --policy replan \
         --slew 2 --slew 3 --slew 4
 
-chooses the slew limit on validation groups; ``--table2`` runs Table 2's groups instead.
+chooses the slew limit on validation groups; ``--table2 N`` (repeatable) runs Table 2's group N instead.
 """
 
 from __future__ import annotations
@@ -44,20 +44,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--split", default="validation", choices=("validation", "train"))
     parser.add_argument("--groups", type=int, default=5)
-    parser.add_argument("--table2", action="store_true", help="Table 2's groups 1, 2, 3 instead of the split's")
+    parser.add_argument("--table2", type=int, action="append", help="Table 2's group N instead of the split's")
     parser.add_argument("--max-duration", type=float, default=None)
     parser.add_argument("--policy", action="append", required=True)
-    parser.add_argument("--slew", action="append", type=float, default=[])
+    parser.add_argument("--slew", action="append", type=float, default=[], help="(default: CONTINUOUS's)")
+    parser.add_argument("--no-deliverable", dest="deliverable", action="store_false", help="skip the deliverable's")
     args = parser.parse_args()
     groups = (
-        {str(k): g for k, g in TABLE2.items()}
+        {str(k): TABLE2[k] for k in args.table2}
         if args.table2
         else {f"{args.split}{i}": g for i, g in enumerate(random_groups(600, args.split, 0)[: args.groups])}
     )
-    blenders = {
-        "deliverable": DELIVERABLE,
-        **{f"slew{s:g}": dataclasses.replace(CONTINUOUS, slew=s) for s in args.slew},
-    }
+    blenders = {"deliverable": DELIVERABLE} if args.deliverable else {}
+    blenders.update(
+        {f"slew{s:g}": dataclasses.replace(CONTINUOUS, slew=s) for s in args.slew} or {"continuous": CONTINUOUS}
+    )
     for name, group in groups.items():
         if args.max_duration is not None:
             group = dataclasses.replace(group, duration=min(group.duration, args.max_duration))
