@@ -13,6 +13,7 @@ from cogblocks.data.groups import random_groups
 from cogblocks.diagrams.sync import MOTIONS, pop_sync
 from cogblocks.sim import Diagram, Simulator
 from cogblocks.sync import RecedingPlanMotion
+from cogblocks.sync.blending import CONTINUOUS
 from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.whole_run import rule_rollouts
 
@@ -235,3 +236,15 @@ def test_with_no_horizon_every_plan_reaches_the_trials_end():
     ]
     with pytest.raises(ValueError, match="horizon=None plans to the trial's end, which needs end"):
         RecedingPlanMotion(3, 0, end=None, horizon=None)
+
+
+def test_through_the_continuous_blender_the_plan_is_what_the_avatar_does_and_never_jumps():
+    block = _block()
+    trace = Simulator(pop_sync(GROUP, motion=block, blender="continuous"), probes=PROBES).run(n_steps=N_TICKS)
+    assert block.blender == CONTINUOUS and [start for start, _, _ in block.plans][0] == 200
+    alteration, predicted = _planned(block, N_TICKS)
+    seen = _wrap(trace["l2"] - trace["l0"])
+    # the plans are made through the slew limit: the blender passes them unchanged, and the model predicts r
+    np.testing.assert_allclose(seen, alteration, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(predicted[200:], trace["r"][200:], rtol=0, atol=1e-4)
+    assert np.abs(np.diff(seen)).max() <= CONTINUOUS.slew * 0.01 + 1e-9
