@@ -13,7 +13,8 @@ import torch
 
 import cogblocks.training.sync_dqn_random as randomised
 from cogblocks.data.groups import TABLE2, random_groups
-from cogblocks.diagrams.sync import _l3_motion, pop_sync
+from cogblocks.diagrams.sync import pop_sync
+from cogblocks.diagrams.sync_motions import _l3_motion
 from cogblocks.sim import Simulator
 from cogblocks.sync.dqn_policy import FEATURE_SIZE, OBS_SIZE, DQNPolicy, L3QNetwork, group_features
 from cogblocks.sync.motion import HOLD_ACTION, L3Context
