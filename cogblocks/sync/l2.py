@@ -60,10 +60,6 @@ class L2Sync(Diagram):
         select = self.add("select_l0", Select(assisted))
         self.add("motion", motion)
         blend = self.add("blender", blender if blender is not None else Blender())
-        # a motion computer that predicts plans through the blender it sits behind, whichever was swapped in
-        params = getattr(blend, "params", None)
-        if isinstance(params, BlenderParams) and callable(getattr(motion, "plan_through", None)):
-            motion.plan_through(params)
         self.connect(select.y, blend.theta_l0)
         self.connect(motion.theta_ref, blend.theta_ref)
         self.connect(blend.lam, motion.lam)
@@ -72,3 +68,18 @@ class L2Sync(Diagram):
         self.expose_output("theta_l0", select.y)
         self.expose_output("theta_ref", motion.theta_ref)
         self.expose_output("lam", blend.lam)
+        self._hand_blender()
+
+    def _changed(self) -> None:
+        super()._changed()
+        self._hand_blender()  # a motion computer or a blender swapped in by replace() is told too
+
+    def _hand_blender(self) -> None:
+        """Tell the motion computer the blender's parameters: one that predicts plans through the blender in use."""
+        try:
+            motion, blend = self["motion"], self["blender"]
+        except KeyError:  # still being built
+            return
+        params = getattr(blend, "params", None)
+        if isinstance(params, BlenderParams) and callable(getattr(motion, "plan_through", None)):
+            motion.plan_through(params)

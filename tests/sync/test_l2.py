@@ -56,3 +56,11 @@ def test_motion_computer_names_the_role_and_its_old_construction_warns():
         OscillatorMotion(policy, n=group.n, assisted=group.assisted, gain=group.gain, omega_init=1.0)
     replan = RecedingPlanMotion(group.n, group.assisted, end=10.0, decide_every=0.5)
     assert replan.decision_period == 0.5
+
+
+def test_a_blender_swapped_in_by_replace_reaches_the_planner_too():
+    d = pop_sync(1, motion="replan", blender="deliverable")
+    d.replace("l2.blender", Blender(params=SWAPPED))
+    assert d["l2.motion"].blender == SWAPPED
+    d.replace("l2.motion", RecedingPlanMotion(5, TABLE2[1].assisted, adjacency=TABLE2[1].graph, end=10.0))
+    assert d["l2.motion"].blender == SWAPPED
