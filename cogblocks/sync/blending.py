@@ -255,15 +255,16 @@ def _clip(x: Any, low: Any, high: Any, ca: Any) -> Any:
     return high if x > high else (low if x < low else x)
 
 
-def alteration(d: Any, lam: Any, params: BlenderParams, previous: Any = 0.0, dt: float = 0.0) -> Any:
+def alteration(d: Any, lam: Any, params: BlenderParams, previous: Any = None, dt: float = 0.0) -> Any:
     """Eqs. (3)–(4): the alteration ``θ_L2 − θ_L0`` of a tick from the wrapped difference ``d = wrap_π(θ_ref − θ_L0)``.
 
     With the deliverable's law this is ``sat_λ(d)``. With ``params.continuous`` the difference is first unwrapped
     around the last tick's alteration ``previous``; with ``params.slew`` the result moves at most ``slew · dt`` from
-    ``previous`` and is then kept within ±λ. Floats, arrays or casadi expressions.
+    ``previous`` and is then kept within ±λ. ``previous=None`` (not known) applies neither. Floats, arrays or casadi
+    expressions.
     """
     ca = _casadi(d) or _casadi(lam) or _casadi(previous)
-    if params.continuous:
+    if params.continuous and previous is not None:
         d = previous + _wrap(d - previous, ca)
     if params.saturation == "hard":
         a = _clip(d, -lam, lam, ca)
@@ -273,7 +274,7 @@ def alteration(d: Any, lam: Any, params: BlenderParams, previous: Any = 0.0, dt:
             a = d / ca.constpow(1.0 + ca.constpow(ratio * ratio, 2), 0.25)
         else:
             a = d / (1.0 + abs(ratio) ** _SMOOTH_P) ** (1.0 / _SMOOTH_P)
-    if params.slew is None:
+    if params.slew is None or previous is None:
         return a
     step = params.slew * dt
     return _clip(_clip(a, previous - step, previous + step, ca), -lam, lam, ca)

@@ -105,12 +105,13 @@ class SyncModel:
         return np.flatnonzero(np.arange(self.n) != self.assisted)
 
     def blend(
-        self, theta: np.ndarray, theta_l3: np.ndarray, lam: np.ndarray, previous: np.ndarray | float = 0.0
+        self, theta: np.ndarray, theta_l3: np.ndarray, lam: np.ndarray, previous: np.ndarray | float | None = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Step 2 of a tick, the blender: the phases the group sees, the alteration and the next threshold.
 
         ``previous`` is the last tick's alteration, which the continuous blender's law remembers
-        (:func:`~cogblocks.sync.blending.alteration`); the deliverable's ignores it.
+        (:func:`~cogblocks.sync.blending.alteration`; ``None``: not known, no slew limit this tick); the
+        deliverable's ignores it.
 
         Returns
         -------
