@@ -66,7 +66,7 @@ def _run_sync(args: argparse.Namespace) -> int:
         raise ValueError("--save-trace writes one run's trace: give exactly one --policy")
     if args.save_trace and (args.duration is not None or args.seed != 0):
         raise ValueError("--save-trace records the group's own run: drop --duration and --seed")
-    options = {"duration": args.duration, "seed": args.seed}
+    options = {"duration": args.duration, "seed": args.seed, "blender": args.blender}
     result: dict[str, Any] = {}
     try:
         for row in sync_table(group, motions, args.domain, **options):
@@ -88,7 +88,9 @@ def _run_sync(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result), flush=True)
     if args.save_trace:
-        write_output(args.save_trace, sync_trace(group, motions[0], args.domain).save, "the trace")
+        write_output(
+            args.save_trace, sync_trace(group, motions[0], args.domain, blender=args.blender).save, "the trace"
+        )
     for motion, path in _figure_paths(args.plot, motions).items():  # one figure per policy that ran
         plot_output(path, lambda path, motion=motion: plot_sync(group, motion, path, domain=args.domain, **options))
     return 0
@@ -115,6 +117,7 @@ def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
         args.seed,
         motions,
         workers=args.workers,
+        blender=args.blender,
         max_duration=args.max_duration,
         details=bool(args.plot),
         split=args.split,
@@ -245,6 +248,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "(default: dqn, lookahead, mean and pop_sync's default, replan; with --random every one); repeatable; "
         "with several, --plot FILE draws one figure per policy, FILE-<policy>",
     )
+    blenders = "'continuous': the avatar never jumps; 'deliverable': the deliverable's, as in Table 3"
+    sync.add_argument("--blender", choices=("continuous", "deliverable"), default="continuous", help=blenders)
     sync.add_argument(
         "--domain",
         choices=("phase", "position"),

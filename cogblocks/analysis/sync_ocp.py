@@ -52,7 +52,15 @@ from cogblocks.sync.group import KuramotoGroup
 from cogblocks.sync.model import DT, BlenderParams
 from cogblocks.sync.motion import MeanPhaseMotion
 from cogblocks.sync.order import OrderParameter
-from cogblocks.sync.whole_run import CHUNK, alteration_rollout, identified_tick_model, sweep, sweep_ticks, tick_model
+from cogblocks.sync.whole_run import (
+    CHUNK,
+    alteration_rollout,
+    identified_tick_model,
+    initial_state,
+    sweep,
+    sweep_ticks,
+    tick_model,
+)
 
 __all__ = [
     "THOROUGH",
@@ -79,7 +87,7 @@ def resimulate(
     select = d.add("select_l0", Select(group.assisted))
     blend = d.add(
         "blender",
-        Blender(params.lambda_min, params.lambda_max, params.e_max, params.kappa_up, params.kappa_down),
+        Blender(params=params),
     )
     seen = d.add("seen", Substitute(group.assisted))
     order = d.add("order", OrderParameter())
@@ -193,7 +201,7 @@ def windowed_control_bound(
     tick = known_noise_tick_model(group, a, params, n_steps) if noisy else tick_model(group, a, params)
     roll = tick.mapaccum("roll", CHUNK)
     s, starts, start_ref = start_references(group, a, n_steps, params)
-    x_init = np.r_[np.zeros(group.n), params.lambda_max, [0.0] if noisy else []]
+    x_init = np.r_[initial_state(np.zeros(group.n), params.lam_max, params), [0.0] if noisy else []]
     states, r = alteration_rollout(roll, x_init, s)
     closed_loop = policy_starts(group, a, params, duration, pace, guard)
     if noisy:  # the noise-free rules' open-loop alterations are not the mean rule's on the noisy group

@@ -19,7 +19,7 @@ from cogblocks.sync.guarded import GuardedPacingMotion
 from cogblocks.sync.l2 import L2Sync
 from cogblocks.sync.model import DT, BlenderParams
 from cogblocks.sync.pacing import PacingMotion
-from cogblocks.sync.whole_run import rule_rollouts
+from cogblocks.sync.whole_run import initial_state, rule_rollouts
 
 __all__ = ["closed_loop_start", "policy_starts", "start_references"]
 
@@ -42,7 +42,7 @@ def start_references(
     dense = lattice[(lattice >= omega.min() - 1.0) & (lattice <= omega.max() + 1.0)]
     kind = np.r_[0, 1, np.full(len(scan_freq) + len(dense), 2)]
     rules = (kind, np.r_[0.0, 0.0, scan_phase, np.zeros(len(dense))], np.r_[0.0, 0.0, scan_freq, dense])
-    state = np.r_[np.zeros(group.n), params.lambda_max]
+    state = initial_state(np.zeros(group.n), params.lam_max, params)
     sums, _ = rule_rollouts(group, adjacency, params, state, rules, n_steps, record=False)
     best = {name: float(sums[kind == k].max() / n_steps) for k, name in enumerate(("none", "mean", "constant"))}
     top = int(np.argmax(sums))
@@ -58,7 +58,7 @@ def closed_loop_start(
     """The alteration fractions and θ_ref of the motion computer ``motion`` (a fresh block) in closed loop."""
     d = Diagram()
     kuramoto = d.add("group", KuramotoGroup.for_group(group, adjacency=adjacency))
-    blend = Blender(params.lambda_min, params.lambda_max, params.e_max, params.kappa_up, params.kappa_down)
+    blend = Blender(params=params)
     l2 = d.add("l2", L2Sync(motion, group.assisted, blend))
     d.connect(kuramoto.theta, l2.theta)
     d.connect(l2.theta_l2, kuramoto.theta_l2)

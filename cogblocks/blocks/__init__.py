@@ -50,6 +50,7 @@ _MOVED = {
             "ring_adjacency",
             "Blender",
             "MotionComputer",
+            "OscillatorMotion",
             "MeanPhaseMotion",
         ),
         "cogblocks.sync",

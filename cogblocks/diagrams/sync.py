@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
@@ -13,13 +13,16 @@ import numpy as np
 from cogblocks.blocks import Demux, Mux, Probe, Substitute
 from cogblocks.blocks.angles import wrap_pi
 from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.diagrams.sync_motions import DEFAULT_MOTION, DEFAULT_MOTIONS, MOTIONS
 from cogblocks.phase import PhaseEstimator
 from cogblocks.sim import BASE_STEP, Block, Diagram, Simulator, Trace
 from cogblocks.sim.params import finite_number, one_of
-from cogblocks.sync import ArmPositions, Blender, KuramotoGroup, MeanPhaseMotion, MotionComputer, OrderParameter
+from cogblocks.sync import ArmPositions, Blender, KuramotoGroup, OrderParameter
+from cogblocks.sync.blending import BlenderParams, blender_params
 from cogblocks.sync.l2 import L2Sync
 
 __all__ = [
+    "DEFAULT_BLENDER",
     "DEFAULT_MOTION",
     "DEFAULT_MOTIONS",
     "MOTIONS",
@@ -31,101 +34,11 @@ __all__ = [
     "sync_table",
 ]
 
+#: The blender the ready diagrams use when none is given: the continuous one, whose avatar never jumps
+#: (``"deliverable"`` is the deliverable's exact law, which flips the alteration at ±π).
+DEFAULT_BLENDER = "continuous"
+
 _LONG_RUN = 20_000  # ticks from which a run in a terminal shows a progress bar, as the Simulator's default
-
-
-def _mean_motion(group: SyncGroup) -> Block:
-    return MeanPhaseMotion(group.n, group.assisted)
-
-
-def _l3_motion(group: SyncGroup, policy: Any) -> Block:
-    return MotionComputer(
-        policy,
-        n=group.n,
-        assisted=group.assisted,
-        gain=group.gain,
-        omega_init=float(np.mean(group.omega)),
-        adjacency=group.graph,
-    )
-
-
-def _dqn_raw_motion(group: SyncGroup) -> Block:
-    from cogblocks.sync import DQNPolicy
-
-    return _l3_motion(group, DQNPolicy.default())
-
-
-def _dqn_motion(group: SyncGroup) -> Block:
-    from cogblocks.sync import ShieldedMotion
-
-    return ShieldedMotion(_dqn_raw_motion(group), adjacency=group.graph)
-
-
-def _lookahead_motion(group: SyncGroup) -> Block:
-    from cogblocks.sync import LookaheadPolicy
-
-    return _l3_motion(group, LookaheadPolicy.for_group(group))
-
-
-def _mpc_motion(group: SyncGroup) -> Block:
-    from cogblocks.sync import MPCMotion
-
-    return MPCMotion(group.n, group.assisted, adjacency=group.adjacency())
-
-
-def _pace_motion(group: SyncGroup) -> Block:
-    from cogblocks.sync import PacingMotion
-
-    return PacingMotion(group.n, group.assisted, adjacency=group.graph)
-
-
-def _plan_motion(group: SyncGroup) -> Block:
-    from cogblocks.sync import PlannedMotion
-
-    return PlannedMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
-
-
-def _replan_motion(group: SyncGroup) -> Block:
-    from cogblocks.sync import RecedingPlanMotion
-
-    # a simulated trial has an end, and every plan reaches it (live_motion plans 30 s ahead, with no end)
-    return RecedingPlanMotion(
-        group.n, group.assisted, adjacency=group.graph, end=group.duration, horizon=None, compare=None
-    )
-
-
-def _guard_motion(group: SyncGroup) -> Block:
-    from cogblocks.sync import GuardedPacingMotion
-
-    # the trial's length is part of the task (mean r over [0, T]), not a model of the group: predictions run to it
-    return GuardedPacingMotion.for_trial(group.n, group.assisted, adjacency=group.graph, end=group.duration)
-
-
-#: Motion computers available by name: each builds a fresh block for a group. ``dqn_raw`` is the trained L3 policy
-#: (``python -m cogblocks.training.sync_dqn --randomised --seed 0``), ``dqn`` the same behind a shield (followed only
-#: while a prediction on the group identified online says it does not lower r); ``lookahead`` plans 25 ticks ahead on
-#: the true model; ``mean`` follows the others' circular mean; ``mpc``, ``pace``, ``guard`` and ``replan`` plan on a
-#: model they identify online (``replan`` re-plans to the trial's end every second with the bound's search); ``plan``
-#: plans the whole trial at once with it (offline: seconds of CPU in one tick). Add an entry to make a policy available
-#: to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
-MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
-    "dqn": _dqn_motion,
-    "dqn_raw": _dqn_raw_motion,
-    "guard": _guard_motion,
-    "lookahead": _lookahead_motion,
-    "mean": _mean_motion,
-    "mpc": _mpc_motion,
-    "pace": _pace_motion,
-    "plan": _plan_motion,
-    "replan": _replan_motion,
-}
-
-#: The motion computer :func:`pop_sync` uses when none is given (docs/pop-sync.md, "Default", says why).
-DEFAULT_MOTION = "replan"
-
-#: What ``run_sync`` and ``cogblocks run sync --group N`` run without a policy list: the Table 3
-#: comparison as first published here (``mpc`` is slower and runs when asked for by name).
-DEFAULT_MOTIONS = ("dqn", "lookahead", "mean")
 
 
 def _group_of(group: int | SyncGroup) -> SyncGroup:
@@ -165,7 +78,7 @@ def pop_sync(
     group: int | SyncGroup = 1,
     l2: bool = True,
     motion: str | Block = DEFAULT_MOTION,
-    blender: Blender | None = None,
+    blender: str | BlenderParams | Block | None = DEFAULT_BLENDER,
     *,
     domain: str = "phase",
     noise_std: float = 1.0,
@@ -188,8 +101,11 @@ def pop_sync(
         Include the L2 architecture.
     motion : str or Block
         A name from :data:`MOTIONS` or a motion computer block.
-    blender : Blender, optional
-        The deliverable's blender by default.
+    blender : str, BlenderParams, Block or None
+        ``"continuous"`` (the default: :data:`~cogblocks.sync.blending.CONTINUOUS`, the avatar never jumps),
+        ``"deliverable"`` or ``None`` (the deliverable's exact blender), a
+        :class:`~cogblocks.sync.blending.BlenderParams`, or a blender block (a :class:`Blender`, say). A motion
+        computer that predicts plans through it.
     domain : {"phase", "position"}
         ``"position"`` puts :func:`phase_sensing` (block ``sensing``) between the
         group and the L2 block: the phases drive 1D arm positions (150 mm
@@ -212,6 +128,8 @@ def pop_sync(
             if motion not in MOTIONS:
                 raise ValueError(f"pop_sync: motion must be one of {sorted(MOTIONS)} or a Block, got {motion!r}")
             motion = MOTIONS[motion](params)
+        if not isinstance(blender, Block):
+            blender = Blender(params=blender_params("pop_sync", blender))
         arch = d.add("l2", L2Sync(motion, params.assisted, blender))
         seen = d.add("seen", Substitute(params.assisted))
         d.connect(kuramoto.theta, seen.u)
@@ -280,12 +198,13 @@ def sync_table(
     duration: float | None = None,
     seed: int = 0,
     progress: bool | None = None,
+    blender: str | BlenderParams | None = DEFAULT_BLENDER,
 ) -> Iterator[dict[str, Any]]:
     """Table 3 for one group, one figure as soon as it is computed (see :func:`run_sync`).
 
     Yields first ``{"group", "domain", "r_without"}``, then one row ``{"policy", "r_with",
     "change_pct", "mean_dev_rad", "max_dev_rad"}`` per motion computer. Progress bars are named
-    after the group and the run (``progress`` as in :func:`simulate`).
+    after the group and the run (``progress`` as in :func:`simulate`); ``blender`` as in :func:`pop_sync`.
     """
     params, motions = _checked(group, motions, duration)
     number = group if isinstance(group, int) else params.name
@@ -295,7 +214,7 @@ def sync_table(
     yield {"group": number, "domain": domain, "r_without": r_without}
     for name in motions:
         probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0"}
-        diagram = pop_sync(params, l2=True, motion=name, domain=domain, seed=seed)
+        diagram = pop_sync(params, l2=True, motion=name, blender=blender, domain=domain, seed=seed)
         label = f"group {number}, L2 with {name if isinstance(name, str) else type(name).__name__}"
         trace = simulate(diagram, n_steps, probes, label=label, progress=progress)
         r_with = float(trace["r"].mean())
@@ -317,13 +236,15 @@ def run_sync(
     duration: float | None = None,
     seed: int = 0,
     progress: bool | None = None,
+    blender: str | BlenderParams | None = DEFAULT_BLENDER,
 ) -> dict[str, Any]:
     """Table 3 for one group: the time-averaged order parameter without and with L2.
 
     The average is over every sample ``t = 0 … T`` (T/dt + 1 ticks, r(0) = 1), as
     in the deliverable. ``domain="position"`` runs the L2 architecture on
     phases estimated from arm positions (see :func:`pop_sync`), with sensor noise
-    seeded by ``seed``. ``duration`` (seconds) replaces the group's T. Every motion
+    seeded by ``seed``. ``duration`` (seconds) replaces the group's T; ``blender`` is
+    :func:`pop_sync`'s (``"deliverable"`` for the deliverable's exact blender). Every motion
     computer name is checked before the first run.
 
     Returns
@@ -333,7 +254,7 @@ def run_sync(
         "mean_dev_rad", "max_dev_rad"}, ...]}``; the deviations are
         ``|wrap(θ_L2 − θ_L0)|`` over the run.
     """
-    head, *rows = sync_table(group, motions, domain, duration=duration, seed=seed, progress=progress)
+    head, *rows = sync_table(group, motions, domain, duration=duration, seed=seed, progress=progress, blender=blender)
     return {**head, "results": rows}
 
 
@@ -346,6 +267,7 @@ def plot_sync(
     window: float = 10.0,
     domain: str = "phase",
     seed: int = 0,
+    blender: str | BlenderParams | None = DEFAULT_BLENDER,
 ) -> None:
     """Draw the analogues of Figures 9 and 10 and save them to ``path``.
 
@@ -364,7 +286,7 @@ def plot_sync(
     n_steps = round(params.duration / BASE_STEP) + 1
     without = simulate(pop_sync(params, l2=False), n_steps, label="plot, without L2")
     probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0", "theta_ref": "l2.theta_ref"}
-    diagram = pop_sync(params, l2=True, motion=motion, domain=domain, seed=seed)
+    diagram = pop_sync(params, l2=True, motion=motion, blender=blender, domain=domain, seed=seed)
     with_l2 = simulate(diagram, n_steps, probes, label=f"plot, L2 with {label}")
     t = with_l2.t
     zoom = t >= t[-1] - min(window, t[-1] / 4)  # a short run is zoomed too

@@ -19,7 +19,9 @@ import numpy as np
 
 from cogblocks.analysis.sync_ocp import THOROUGH, resimulate, windowed_control_bound
 from cogblocks.data.groups import SyncGroup
-from cogblocks.sync.model import DT, BlenderParams, SyncModel, order_parameter
+from cogblocks.sync.blending import BlenderParams, lam_step
+from cogblocks.sync.blending import alteration as blended
+from cogblocks.sync.model import DT, SyncModel, order_parameter
 
 __all__ = ["constant_frequency_bound", "constant_frequency_scan", "resimulate", "upper_bound"]
 
@@ -42,10 +44,10 @@ def _constant_grid(group: SyncGroup, a: np.ndarray, n_steps: int, params: Blende
         blender=params,
     )
     theta = np.zeros((len(grid), group.n))
-    lam = np.full(len(grid), params.lambda_max)
-    total = np.zeros(len(grid))
+    lam = np.full(len(grid), params.lam_max)
+    total, shift = np.zeros(len(grid)), np.zeros(len(grid))
     for k in range(n_steps):
-        seen, _, lam = model.blend(theta, np.mod(grid * k * DT, 2 * np.pi), lam)
+        seen, shift, lam = model.blend(theta, np.mod(grid * k * DT, 2 * np.pi), lam, shift)
         total += order_parameter(seen)
         theta, _ = model.advance(theta, seen, np.zeros(len(grid)), grid)
     return total / n_steps
@@ -141,14 +143,14 @@ def constant_frequency_scan(
     # Same equations as SyncModel.blend/advance; the wraps are dropped where sin/cos make them moot.
     n_steps = round(group.duration / dt)
     theta = np.zeros((len(omega_c), n))
-    lam = np.full(len(omega_c), params.lambda_max)
+    lam = np.full(len(omega_c), params.lam_max)
     r_sum = np.zeros(len(omega_c))
-    slope = (params.lambda_max - params.lambda_min) / params.e_max
+    alteration = np.zeros(len(omega_c))
     for k in range(n_steps + 1):
         theta_l0 = theta[:, a]
-        alteration = np.clip(np.mod(phase0 + omega_c * (k * dt) - theta_l0 + np.pi, 2.0 * np.pi) - np.pi, -lam, lam)
-        lam_inf = np.maximum(params.lambda_min, params.lambda_max - slope * np.abs(alteration))
-        lam = lam - dt * np.where(lam <= lam_inf, params.kappa_up, params.kappa_down) * (lam - lam_inf)
+        d = np.mod(phase0 + omega_c * (k * dt) - theta_l0 + np.pi, 2.0 * np.pi) - np.pi
+        alteration = blended(d, lam, params, alteration, dt)
+        lam = lam_step(lam, alteration, params, dt)
         theta_tilde = theta.copy()
         theta_tilde[:, a] = theta_l0 + alteration
         z = np.exp(1j * theta_tilde)

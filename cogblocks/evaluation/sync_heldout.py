@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from cogblocks.data.groups import SyncGroup, random_groups
-from cogblocks.diagrams.sync import MOTIONS, run_sync
+from cogblocks.diagrams.sync import DEFAULT_BLENDER, MOTIONS, run_sync
 from cogblocks.evaluation.sync_bound import upper_bound
 
 __all__ = ["evaluate_group", "heldout_table", "plot_heldout", "summarise"]
@@ -27,7 +27,12 @@ MIN_HEADROOM = 1e-3
 
 
 def evaluate_group(
-    group: SyncGroup, policies: list[str], bound: bool = True, thorough: bool = False, domain: str = "phase"
+    group: SyncGroup,
+    policies: list[str],
+    bound: bool = True,
+    thorough: bool = False,
+    domain: str = "phase",
+    blender: str = DEFAULT_BLENDER,
 ) -> dict[str, Any]:
     """One group: r without L2, the bound, and per policy r with L2, the change and the deviations.
 
@@ -42,7 +47,7 @@ def evaluate_group(
         the clairvoyant one (the noise draw known). ``domain="position"`` runs the policies on phases estimated
         from arm positions (the bound stays the phase domain's).
     """
-    result = run_sync(group, policies, domain)
+    result = run_sync(group, policies, domain, blender=blender)
     r_without = result["r_without"]
     # without the pace start unless thorough: it would cost as much again
     r_bound = upper_bound(group, pace=False, thorough=thorough) if bound else None
@@ -98,6 +103,7 @@ def heldout_table(
     thorough: bool = False,
     noise: bool = False,
     domain: str = "phase",
+    blender: str = DEFAULT_BLENDER,
 ) -> dict[str, Any]:
     """Evaluate ``policies`` (all of :data:`MOTIONS` by default) on ``n_groups`` groups of ``split`` and ``seed``.
 
@@ -130,6 +136,8 @@ def heldout_table(
         without L2); the bound is then the clairvoyant one.
     domain : {"phase", "position"}
         Where the policies read the phases (see :func:`~cogblocks.diagrams.sync.pop_sync`).
+    blender : {"continuous", "deliverable"}
+        The blender of every closed loop (:func:`~cogblocks.diagrams.sync.pop_sync`'s); the bound is the deliverable's.
 
     Returns
     -------
@@ -152,12 +160,12 @@ def heldout_table(
             raise ValueError(f"max_duration must be positive, got {max_duration}")
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
     if workers == 1:
-        rows = [evaluate_group(group, policies, bound, thorough, domain) for group in groups]
+        rows = [evaluate_group(group, policies, bound, thorough, domain, blender) for group in groups]
     else:
         from joblib import Parallel, delayed
 
         rows = Parallel(n_jobs=workers, backend="loky")(
-            delayed(evaluate_group)(g, policies, bound, thorough, domain) for g in groups
+            delayed(evaluate_group)(g, policies, bound, thorough, domain, blender) for g in groups
         )
     table: dict[str, Any] = {"n_groups": len(groups), "seed": seed, "policies": summarise(rows, policies)}
     if any(group.noise is not None for group in groups):

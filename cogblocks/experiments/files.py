@@ -7,7 +7,7 @@ arrays as nested lists with their dtype, signal specs as their fields, blocks gi
 networks go to files beside the diagram (``<name>.data/``: ``.npz`` without pickles, ``.pt`` state
 dicts loaded with ``weights_only=True``). No code is stored and nothing is evaluated when loading.
 
-The L3 policies of a :class:`~cogblocks.sync.MotionComputer` are stored too: the DQN
+The L3 policies of an :class:`~cogblocks.sync.OscillatorMotion` are stored too: the DQN
 policy by its network's state dict, the look-ahead policy by its model (plain data).
 
 What cannot be saved, with a ``TypeError`` naming the block and the parameter: callables

@@ -16,7 +16,7 @@ import pandas as pd
 
 from cogblocks.data import groups as group_data
 from cogblocks.data.groups import TABLE2, SyncGroup
-from cogblocks.diagrams.sync import MOTIONS, pop_sync
+from cogblocks.diagrams.sync import DEFAULT_BLENDER, MOTIONS, pop_sync
 from cogblocks.experiments.sweep import sweep
 from cogblocks.sim import Simulator, Trace
 
@@ -44,25 +44,31 @@ def random_group_set(n: int, split: str = "test", seed: int = 0) -> dict[str, Sy
     return {f"{split}{i}": g for i, g in enumerate(make(n, split=split, seed=seed))}
 
 
-def _closed_loop(group: SyncGroup, policy: str, seed: int, domain: str) -> Simulator:
+def _closed_loop(group: SyncGroup, policy: str, seed: int, domain: str, blender: str = DEFAULT_BLENDER) -> Simulator:
     if policy == NO_L2:
         return Simulator(pop_sync(group, l2=False), progress=False)
     if policy not in MOTIONS:
         raise ValueError(f"policy must be {NO_L2!r} or one of {sorted(MOTIONS)}, got {policy!r}")
-    diagram = pop_sync(group, l2=True, motion=policy, domain=domain, seed=seed)
+    diagram = pop_sync(group, l2=True, motion=policy, blender=blender, domain=domain, seed=seed)
     return Simulator(diagram, probes=_L2_PROBES, progress=False)
 
 
 def sync_run(
-    group: str, policy: str, seed: int, *, groups: Mapping[str, SyncGroup], domain: str = "phase"
+    group: str,
+    policy: str,
+    seed: int,
+    *,
+    groups: Mapping[str, SyncGroup],
+    domain: str = "phase",
+    blender: str = DEFAULT_BLENDER,
 ) -> Callable[[], Trace]:
-    """The run function of one task: the closed loop of ``groups[group]`` with ``policy``.
+    """The run function of one task: the closed loop of ``groups[group]`` with ``policy`` behind ``blender``.
 
     ``seed`` seeds the arm-position noise of the ``"position"`` domain; the phase domain is
     deterministic.
     """
     params = groups[group]
-    sim = _closed_loop(params, policy, seed, domain)
+    sim = _closed_loop(params, policy, seed, domain, blender)
     return functools.partial(sim.run, n_steps=round(params.duration / sim.dt) + 1)
 
 
@@ -108,11 +114,11 @@ def sweep_sync(
     return df
 
 
-def save_sync_trace(group: int, policy: str, domain: str, path: str) -> None:
+def save_sync_trace(group: int, policy: str, domain: str, path: str, *, blender: str = DEFAULT_BLENDER) -> None:
     """Write the trace of one closed loop of Table 2's ``group`` with ``policy`` (``run sync --save-trace``)."""
-    sync_trace(group, policy, domain).save(path)
+    sync_trace(group, policy, domain, blender=blender).save(path)
 
 
-def sync_trace(group: int, policy: str, domain: str) -> Trace:
+def sync_trace(group: int, policy: str, domain: str, *, blender: str = DEFAULT_BLENDER) -> Trace:
     """The trace of one closed loop of Table 2's ``group`` with ``policy``."""
-    return sync_run(str(group), policy, 0, groups=table2_groups([group]), domain=domain)()
+    return sync_run(str(group), policy, 0, groups=table2_groups([group]), domain=domain, blender=blender)()

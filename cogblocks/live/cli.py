@@ -24,7 +24,7 @@ _HELPS = {
 def _options(args: argparse.Namespace) -> dict[str, Any]:
     """The diagram and its options, as a session file keeps them."""
     keep = {"diagram": args.diagram, "in": args.in_stream, "out": args.out_stream, "timeout": args.timeout}
-    for key in ("group", "policy", "delay", "unit"):
+    for key in ("group", "policy", "blender", "delay", "unit"):
         if getattr(args, key, None) is not None:
             keep[key] = getattr(args, key)
     return keep
@@ -113,7 +113,7 @@ def _run_replay(args: argparse.Namespace) -> int:
             options[key] = value
         elif key not in options:
             raise ValueError(f"{args.file}: recorded with no {args.diagram!r} diagram; give --{key}")
-    for key in ("group", "policy", "delay", "unit"):
+    for key in ("group", "policy", "blender", "delay", "unit"):
         if getattr(args, key, None) is not None:
             options[key] = getattr(args, key)
     report = replay_session(live_diagram(options), session)
@@ -155,6 +155,13 @@ def _diagram_options(p: argparse.ArgumentParser, name: str, replay: bool) -> Non
             type=POLICY,
             default=None if replay else "dqn",
             help=f"motion computer, e.g. dqn, lookahead or mean{recorded or ' (default dqn)'}",
+        )
+        p.add_argument(
+            "--blender",
+            choices=("continuous", "deliverable"),
+            default=None if replay else "continuous",
+            help="'continuous': the avatar never jumps; 'deliverable': the deliverable's exact blender"
+            f"{recorded or ' (default continuous)'}",
         )
     else:
         p.add_argument(

@@ -5,13 +5,14 @@ from __future__ import annotations
 from typing import Any
 
 from cogblocks.data.groups import TABLE2, SyncGroup
-from cogblocks.diagrams.sync import MOTIONS
+from cogblocks.diagrams.sync import DEFAULT_BLENDER, MOTIONS
 from cogblocks.live.inlet import LSLInlet
 from cogblocks.live.outlet import LSLOutlet
 from cogblocks.phase import PhaseEstimator
 from cogblocks.sensing import L1, KalmanEstimator
 from cogblocks.sim import Block, Diagram
-from cogblocks.sync import L2Sync, OrderParameter
+from cogblocks.sync import Blender, L2Sync, OrderParameter
+from cogblocks.sync.blending import blender_params
 
 __all__ = ["LAG", "LIVE_DIAGRAMS", "live_diagram", "live_l1", "live_motion", "live_phase", "live_sync"]
 
@@ -63,23 +64,32 @@ def live_motion(name: str, group: SyncGroup) -> Block:
     return MOTIONS[name](group)
 
 
-def live_sync(in_stream: str, out_stream: str, *, group: int = 1, motion: str = "dqn", timeout: float = 5.0) -> Diagram:
+def live_sync(
+    in_stream: str,
+    out_stream: str,
+    *,
+    group: int = 1,
+    motion: str = "dqn",
+    timeout: float = 5.0,
+    blender: str = DEFAULT_BLENDER,
+) -> Diagram:
     """The participants' phases in (one channel each, rad), the avatar's phase θ_L2 out.
 
     The L2 architecture of the PoP of Social Connectedness (:class:`~cogblocks.sync.L2Sync`)
     for a group of Table 2 (its size fixes the channel count) with the motion computer ``motion``
     (a name of :data:`~cogblocks.diagrams.sync.MOTIONS`, built by :func:`live_motion`;
-    the trained DQN policy by default). The inlet resamples the phases :data:`LAG` s back on the tick grid, along
-    the circle. Besides ``theta_l2`` and the inlet's ``sample``, ``age_ms`` and ``fresh``, the diagram shows
-    ``theta_l0`` (the assisted participant's phase), the blending's ``lam`` and ``r``, the order parameter of
-    the participants' phases as received.
+    the trained DQN policy by default), behind ``blender`` (``"continuous"``, whose avatar never jumps, or
+    ``"deliverable"``, the deliverable's exact blender). The inlet resamples the phases :data:`LAG` s back on the
+    tick grid, along the circle. Besides ``theta_l2`` and the inlet's ``sample``, ``age_ms`` and ``fresh``, the
+    diagram shows ``theta_l0`` (the assisted participant's phase), the blending's ``lam`` and ``r``, the order
+    parameter of the participants' phases as received.
     """
     if group not in TABLE2:
         raise ValueError(f"live_sync: group must be one of {sorted(TABLE2)}, got {group!r}")
     params = TABLE2[group]
     if motion not in MOTIONS:
         raise ValueError(f"live_sync: motion must be one of {sorted(MOTIONS)}, got {motion!r}")
-    arch = L2Sync(live_motion(motion, params), params.assisted)
+    arch = L2Sync(live_motion(motion, params), params.assisted, Blender(params=blender_params("live_sync", blender)))
     inlet = LSLInlet(
         in_stream, shape=(params.n,), unit="rad", wrapped=True, mode="interpolate", lag=LAG, timeout=timeout
     )
@@ -124,7 +134,7 @@ def live_diagram(options: dict[str, Any]) -> Diagram:
     """The ready diagram that ``options`` describe, as a session file keeps them.
 
     Keys: ``diagram`` (a name of :data:`LIVE_DIAGRAMS`), ``in`` and ``out`` (stream names), and as they
-    apply ``timeout``, ``group`` and ``policy`` (sync), ``delay`` (l1), ``unit`` (the input's unit when the
+    apply ``timeout``, ``group``, ``policy`` and ``blender`` (sync), ``delay`` (l1), ``unit`` (the input's unit when the
     stream declares none; phase and l1).
     """
     name = options.get("diagram")
@@ -132,7 +142,11 @@ def live_diagram(options: dict[str, Any]) -> Diagram:
         raise ValueError(f"live_diagram: diagram must be one of {sorted(LIVE_DIAGRAMS)}, got {name!r}")
     kw: dict[str, Any] = {"timeout": options.get("timeout", 5.0)}
     if name == "sync":
-        kw.update(group=options.get("group", 1), motion=options.get("policy", "dqn"))
+        kw.update(
+            group=options.get("group", 1),
+            motion=options.get("policy", "dqn"),
+            blender=options.get("blender", DEFAULT_BLENDER),
+        )
     else:
         kw.update(source_unit=options.get("unit"))
     if name == "l1":

@@ -10,11 +10,12 @@ import importlib
 from typing import Any
 
 from cogblocks.sync.blender import DELIVERABLE_BLENDER, Blender
+from cogblocks.sync.blending import BLENDERS, CONTINUOUS, DELIVERABLE, BlenderParams
 from cogblocks.sync.group import KuramotoGroup, KuramotoOscillator, ring_adjacency
 from cogblocks.sync.l2 import L2Sync
 from cogblocks.sync.lookahead import LookaheadPolicy
-from cogblocks.sync.model import BlenderParams, SyncModel
-from cogblocks.sync.motion import L3Context, L3Policy, MeanPhaseMotion, MotionComputer
+from cogblocks.sync.model import SyncModel
+from cogblocks.sync.motion import L3Context, L3Policy, MeanPhaseMotion, MotionComputer, OscillatorMotion
 from cogblocks.sync.order import OrderParameter
 from cogblocks.sync.positions import ArmPositions
 from cogblocks.sync.stability import LambdaReport, check_blender, lambda_report
@@ -31,6 +32,9 @@ _LAZY = {
 }
 
 __all__ = [
+    "BLENDERS",
+    "CONTINUOUS",
+    "DELIVERABLE",
     "DELIVERABLE_BLENDER",
     "ArmPositions",
     "Blender",
@@ -49,6 +53,7 @@ __all__ = [
     "MeanPhaseMotion",
     "MotionComputer",
     "OrderParameter",
+    "OscillatorMotion",
     "PacingMotion",
     "PlannedMotion",
     "RecedingPlanMotion",

@@ -3,30 +3,34 @@
 ``θ_L2 = wrap(θ_L0 + sat_λ(wrap_π(θ_ref − θ_L0)))`` with a threshold λ that
 follows ``λ∞ = ψ(e / e_max)(λ_max − λ_min) + λ_min``, ``e = wrap_π(θ_L2 − θ_L0)``,
 through the piecewise first-order dynamics of eq. (6), integrated by forward
-Euler: fast decrease (κ⁻), slow recovery (κ⁺)."""
+Euler: fast decrease (κ⁻), slow recovery (κ⁺). The continuous option unwraps the
+difference and limits the alteration's rate, so that the avatar never jumps
+(:mod:`cogblocks.sync.blending` holds the law, shared with every model that plans
+through it)."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.blocks.specs import PHASE
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of
+from cogblocks.sync.blending import BlenderParams, alteration, lam_inf, lam_step
 from cogblocks.sync.stability import check_blender
 
 __all__ = ["Blender", "DELIVERABLE_BLENDER"]
 
-#: The L2 parameters of section 5.2.3.2 (κ⁻ = 2.5 decrease, κ⁺ = 1 increase; see the notes).
+#: The L2 parameters of section 5.2.3.2 (κ⁻ = 2.5 decrease, κ⁺ = 1 increase; see the notes), as a mapping of
+#: :class:`~cogblocks.sync.blending.BlenderParams`' defaults.
 DELIVERABLE_BLENDER = {
-    "lam_min": 0.3 * math.pi / 2,
-    "lam_max": math.pi / 2,
-    "e_max": 0.3 * math.pi / 2,
-    "kappa_plus": 1.0,
-    "kappa_minus": 2.5,
+    "lam_min": BlenderParams().lam_min,
+    "lam_max": BlenderParams().lam_max,
+    "e_max": BlenderParams().e_max,
+    "kappa_plus": BlenderParams().kappa_plus,
+    "kappa_minus": BlenderParams().kappa_minus,
 }
-
-_SMOOTH_P = 4.0
 
 
 def _wrap_pi(x: float) -> float:
@@ -61,6 +65,19 @@ class Blender(Block):
         ``sat_λ`` of eq. (4), or the differentiable ``x / (1 + |x/λ|^4)^(1/4)``.
     psi : {"triangular", "bump"}
         ``ψ(x) = max(0, 1 − |x|)`` or ``exp(1 − 1/(1 − x²))`` for ``|x| < 1``.
+    continuous : bool
+        Unwrap θ_ref − θ_L0 around the last alteration: the alteration keeps its side
+        when the difference crosses ±π, instead of flipping from +λ to −λ in one tick.
+    slew : float or None
+        Largest rate of change of the alteration θ_L2 − θ_L0 (rad/s); ``None``: unlimited.
+    params : BlenderParams, optional
+        All of the above as one object (:data:`cogblocks.sync.blending.CONTINUOUS`, say);
+        then no other parameter may be given.
+
+    Attributes
+    ----------
+    params : BlenderParams
+        The parameters as one object: what the motion computers plan through.
 
     Notes
     -----
@@ -68,11 +85,11 @@ class Blender(Block):
     both rates and a stable equilibrium at the limit λ*
     (:func:`cogblocks.sync.check_blender`), or compiling fails;
     ``dt·κ > 1`` makes λ overshoot λ∞ and only warns. Defaults are the
-    deliverable's values (:data:`DELIVERABLE_BLENDER`).
+    deliverable's values (:data:`DELIVERABLE_BLENDER`), with its memoryless law.
 
     Bad data policy: a non-finite ``theta_l0`` holds the last outputs and does
-    not advance λ; a non-finite ``theta_ref`` gives no alteration
-    (``θ_L2 = θ_L0``) for that tick.
+    not advance λ; a non-finite ``theta_ref`` asks for no alteration
+    (``θ_L2 = θ_L0`` with the deliverable's law; the continuous one slews toward it).
     """
 
     def __init__(
@@ -85,9 +102,31 @@ class Blender(Block):
         *,
         saturation: str = "hard",
         psi: str = "triangular",
+        continuous: bool = False,
+        slew: float | None = None,
+        params: BlenderParams | None = None,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
+        if params is not None:
+            given = {
+                "lam_min": lam_min != DELIVERABLE_BLENDER["lam_min"],
+                "lam_max": lam_max != DELIVERABLE_BLENDER["lam_max"],
+                "e_max": e_max != DELIVERABLE_BLENDER["e_max"],
+                "kappa_plus": kappa_plus != DELIVERABLE_BLENDER["kappa_plus"],
+                "kappa_minus": kappa_minus != DELIVERABLE_BLENDER["kappa_minus"],
+                "saturation": saturation != "hard",
+                "psi": psi != "triangular",
+                "continuous": continuous is not False,
+                "slew": slew is not None,
+            }
+            if not isinstance(params, BlenderParams):
+                raise ValueError(f"Blender: params must be a BlenderParams, got {type(params).__name__}")
+            if any(given.values()):
+                raise ValueError(f"Blender: give params or {[k for k, v in given.items() if v]}, not both")
+            lam_min, lam_max, e_max = params.lam_min, params.lam_max, params.e_max
+            kappa_plus, kappa_minus = params.kappa_plus, params.kappa_minus
+            saturation, psi, continuous, slew = params.saturation, params.psi, params.continuous, params.slew
         self.lam_min = finite_number(self, "lam_min", lam_min, low=0.0, low_open=True)
         self.lam_max = finite_number(self, "lam_max", lam_max, low=self.lam_min)
         self.e_max = finite_number(self, "e_max", e_max, low=0.0, low_open=True)
@@ -95,11 +134,28 @@ class Blender(Block):
         self.kappa_minus = finite_number(self, "kappa_minus", kappa_minus, low=0.0, low_open=True)
         self.saturation = one_of(self, "saturation", saturation, ("hard", "smooth"))
         self.psi = one_of(self, "psi", psi, ("triangular", "bump"))
+        if not isinstance(continuous, bool):
+            raise ValueError(f"Blender: continuous must be True or False, got {continuous!r}")
+        self.continuous = continuous
+        self.slew = None if slew is None else finite_number(self, "slew", slew, low=0.0, low_open=True)
+        self.params = BlenderParams(
+            lam_min=self.lam_min,
+            lam_max=self.lam_max,
+            e_max=self.e_max,
+            kappa_plus=self.kappa_plus,
+            kappa_minus=self.kappa_minus,
+            saturation=self.saturation,
+            psi=self.psi,
+            continuous=self.continuous,
+            slew=self.slew,
+        )
+        self._memoryless = replace(self.params, continuous=False, slew=None)
         self.add_input("theta_l0", PHASE)
         self.add_input("theta_ref", PHASE)
         self.add_output("theta_l2", PHASE)
         self.add_output("lam", Signal(unit="rad"), initial=self.lam_max)
         self.add_state("lam_now", self.lam_max)
+        self.add_state("shift_now", 0.0)  # the alteration θ_L2 − θ_L0 of the last tick (the continuous law's memory)
 
     def setup(self) -> None:
         # the λ dynamics must be stable for this step, both along the linear pieces and at the
@@ -111,9 +167,7 @@ class Blender(Block):
 
     def saturate(self, x: float, lam: float) -> float:
         """``sat_λ(x)``: hard clip to [−λ, λ], or its smooth version."""
-        if self.saturation == "hard":
-            return lam if x > lam else (-lam if x < -lam else x)
-        return x / (1.0 + abs(x / lam) ** _SMOOTH_P) ** (1.0 / _SMOOTH_P)
+        return alteration(x, lam, self._memoryless)
 
     def psi_of(self, x: float) -> float:
         """``ψ(x)`` of eq. (5), in [0, 1]."""
@@ -126,25 +180,30 @@ class Blender(Block):
 
     def lam_inf(self, e: float) -> float:
         """λ∞ of eq. (5) for a deviation ``e = θ_L2 − θ_L0``."""
-        return self.psi_of(e / self.e_max) * (self.lam_max - self.lam_min) + self.lam_min
+        return lam_inf(e, self.params)
+
+    def _shift(self, theta_l0: float) -> float:
+        """This tick's alteration θ_L2 − θ_L0, from the inputs and the state (output and update agree on it)."""
+        theta_ref = float(self.theta_ref.value)
+        d = _wrap_pi(theta_ref - theta_l0) if math.isfinite(theta_ref) else 0.0
+        if self.params.deliverable_law and not math.isfinite(theta_ref):
+            return 0.0
+        return alteration(d, self.lam_now, self.params, self.shift_now, self.dt)
 
     def output(self, k: int) -> None:
         theta_l0 = float(self.theta_l0.value)
         if not math.isfinite(theta_l0):
             return
-        lam = self.lam_now
-        theta_ref = float(self.theta_ref.value)
-        shift = self.saturate(_wrap_pi(theta_ref - theta_l0), lam) if math.isfinite(theta_ref) else 0.0
-        self.theta_l2.value[...] = wrap_angle(theta_l0 + shift)
-        self.lam.value[...] = lam
+        theta_l2 = wrap_angle(theta_l0 + self._shift(theta_l0))
+        self.theta_l2.value[...] = theta_l2
+        self.lam.value[...] = self.lam_now
 
     def update(self, k: int) -> None:
-        # eq. (6), forward Euler, with e from this tick's θ_L2 (the output just written) and θ_L0; computed
-        # here rather than kept from output() so that λ_now is the block's whole state between ticks
         theta_l0 = float(self.theta_l0.value)
         if not math.isfinite(theta_l0):
-            return  # λ holds on a missing sample, as θ_L2 does
-        lam = self.lam_now
-        target = self.lam_inf(_wrap_pi(float(self.theta_l2.value) - theta_l0))
-        kappa = self.kappa_plus if lam <= target else self.kappa_minus
-        self.lam_now = lam - self.dt * kappa * (lam - target)
+            return
+        shift = self._shift(theta_l0)
+        theta_l2 = wrap_angle(theta_l0 + shift)
+        # eq. (6), forward Euler, with e from this tick's θ_L2 and θ_L0
+        self.lam_now = lam_step(self.lam_now, _wrap_pi(theta_l2 - theta_l0), self.params, self.dt)
+        self.shift_now = shift

@@ -217,7 +217,7 @@ class GuardedPacingMotion(PacingMotion):
         if not (usable_phases(theta) and math.isfinite(lam)):
             self.previous[...] = math.nan
         else:
-            lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
+            lam = min(max(lam, self.blender.lam_min), self.blender.lam_max)
             ref = self._reference(theta)
             self._identify(theta, lam, ref, dt)
             if self.due:

@@ -6,6 +6,7 @@ from cogblocks.blocks import Select
 from cogblocks.sim import Block, Diagram
 from cogblocks.sim.params import block_with_ports, positive_int
 from cogblocks.sync.blender import Blender
+from cogblocks.sync.blending import BlenderParams
 
 __all__ = ["L2Sync"]
 
@@ -27,12 +28,15 @@ class L2Sync(Diagram):
     ----------
     motion : Block
         A motion computer (ports ``theta``, ``lam`` → ``theta_ref``), e.g.
-        :class:`~cogblocks.sync.MotionComputer`.
+        :class:`~cogblocks.sync.MeanPhaseMotion` (the role: :class:`~cogblocks.sync.MotionComputer`).
     assisted : int
         0-based index of the assisted participant; the motion computer's own, if it has one.
     blender : Block, optional
         A blending rule with the ports of :class:`~cogblocks.sync.Blender` (``theta_l0``,
-        ``theta_ref`` → ``theta_l2``, ``lam``); the deliverable's blender by default.
+        ``theta_ref`` → ``theta_l2``, ``lam``); the deliverable's blender by default. Its
+        ``params`` (a :class:`~cogblocks.sync.blending.BlenderParams`), if it has them, are handed
+        to the motion computer's ``plan_through``: a motion computer that predicts plans through
+        the blender actually in the diagram.
 
     Notes
     -----
@@ -64,3 +68,18 @@ class L2Sync(Diagram):
         self.expose_output("theta_l0", select.y)
         self.expose_output("theta_ref", motion.theta_ref)
         self.expose_output("lam", blend.lam)
+        self._hand_blender()
+
+    def _changed(self) -> None:
+        super()._changed()
+        self._hand_blender()  # a motion computer or a blender swapped in by replace() is told too
+
+    def _hand_blender(self) -> None:
+        """Tell the motion computer the blender's parameters: one that predicts plans through the blender in use."""
+        try:
+            motion, blend = self["motion"], self["blender"]
+        except KeyError:  # still being built
+            return
+        params = getattr(blend, "params", None)
+        if isinstance(params, BlenderParams) and callable(getattr(motion, "plan_through", None)):
+            motion.plan_through(params)

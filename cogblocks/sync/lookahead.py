@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from cogblocks.data.groups import SyncGroup
@@ -47,6 +49,10 @@ class LookaheadPolicy:
         """Look-ahead with an exact model of a group (on its graph) and the given blender."""
         return cls(SyncModel.from_group(group, blender=blender), horizon, replan_every)
 
+    def plan_through(self, blender: BlenderParams) -> None:
+        """Predict through ``blender``, the blender of the diagram the policy's motion computer sits in."""
+        self.model = dataclasses.replace(self.model, blender=blender)
+
     def reset(self, omega_init: float) -> None:
         """Forget the last plan."""
         self._action = HOLD_ACTION
@@ -61,16 +67,18 @@ class LookaheadPolicy:
         """Mean order parameter over the horizon predicted for each action, shape (11,)."""
         n_actions = len(ACTIONS)
         # Tick k's blending is the same for every action: do it once, then fan out.
-        theta_tilde, _, lam = self.model.blend(context.theta, np.asarray(context.theta_l3), np.asarray(context.lam))
+        # tick k's alteration is not known here (no slew limit on it); the predicted ones follow from it
+        theta_tilde, shift, lam = self.model.blend(context.theta, np.asarray(context.theta_l3), np.asarray(context.lam))
         theta = np.broadcast_to(context.theta, (n_actions, self.model.n))
         theta_tilde = np.broadcast_to(theta_tilde, theta.shape)
         theta_l3 = np.full(n_actions, context.theta_l3)
         lam = np.full(n_actions, float(lam))
+        shift = np.full(n_actions, float(shift))
         omega_l3 = np.full(n_actions, context.omega_prev)
         total = np.zeros(n_actions)
         for _ in range(self.horizon):
             omega_l3 = np.clip(omega_l3 + ACTIONS, -OMEGA_L3_LIMIT, OMEGA_L3_LIMIT)
             theta, theta_l3 = self.model.advance(theta, theta_tilde, theta_l3, omega_l3)
-            theta_tilde, _, lam = self.model.blend(theta, theta_l3, lam)
+            theta_tilde, shift, lam = self.model.blend(theta, theta_l3, lam, shift)
             total += order_parameter(theta_tilde)
         return total / self.horizon

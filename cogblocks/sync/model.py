@@ -11,6 +11,7 @@ import scipy.sparse as sp
 
 from cogblocks.blocks.angles import wrap_pi
 from cogblocks.data.groups import SyncGroup
+from cogblocks.sync.blending import BlenderParams, alteration, lam_step
 from cogblocks.sync.coupling import Coupling
 
 __all__ = ["BlenderParams", "DT", "SyncModel", "order_parameter", "wrap"]
@@ -31,29 +32,6 @@ def order_parameter(theta: np.ndarray) -> np.ndarray:
     return np.hypot(np.cos(theta).sum(axis=-1) / n, np.sin(theta).sum(axis=-1) / n)
 
 
-@dataclass(frozen=True)
-class BlenderParams:
-    """Parameters of the L2 blender, eqs. (3)-(6); the defaults are the deliverable's.
-
-    Attributes
-    ----------
-    lambda_max, lambda_min : float
-        Range of the saturation threshold lambda (rad); lambda starts at ``lambda_max``.
-    e_max : float
-        Alteration (rad) at which lambda's target drops to ``lambda_min``.
-    kappa_up : float
-        Rate κ⁺ (1/s) of eq. (6) while lambda grows (``lambda <= lambda_inf``).
-    kappa_down : float
-        Rate κ⁻ (1/s) while lambda shrinks; larger than κ⁺ so large alterations are cut back fast.
-    """
-
-    lambda_max: float = np.pi / 2
-    lambda_min: float = 0.3 * np.pi / 2
-    e_max: float = 0.3 * np.pi / 2
-    kappa_up: float = 1.0
-    kappa_down: float = 2.5
-
-
 @dataclass(frozen=True, eq=False)
 class SyncModel:
     """Kuramoto group with its L2 blender and L3 virtual oscillator; arrays broadcast over leading axes.
@@ -72,7 +50,7 @@ class SyncModel:
     dt : float
         Euler step (s).
     blender : BlenderParams or None
-        Blender parameters; ``None`` runs the group without L2.
+        Blender parameters (:class:`~cogblocks.sync.blending.BlenderParams`); ``None`` runs the group without L2.
     """
 
     omega: np.ndarray
@@ -127,9 +105,13 @@ class SyncModel:
         return np.flatnonzero(np.arange(self.n) != self.assisted)
 
     def blend(
-        self, theta: np.ndarray, theta_l3: np.ndarray, lam: np.ndarray
+        self, theta: np.ndarray, theta_l3: np.ndarray, lam: np.ndarray, previous: np.ndarray | float | None = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Step 2 of a tick, the blender: the phases the group sees, the alteration and the next threshold.
+
+        ``previous`` is the last tick's alteration, which the continuous blender's law remembers
+        (:func:`~cogblocks.sync.blending.alteration`; ``None``: not known, no slew limit this tick); the
+        deliverable's ignores it.
 
         Returns
         -------
@@ -142,17 +124,14 @@ class SyncModel:
         """
         if self.blender is None:
             return theta, np.zeros_like(lam), lam
-        params = self.blender
         theta_l0 = theta[..., self.assisted]
-        theta_l2 = wrap(theta_l0 + np.clip(wrap_pi(theta_l3 - theta_l0), -lam, lam))
-        alteration = wrap_pi(theta_l2 - theta_l0)
-        psi = np.maximum(0.0, 1.0 - np.abs(alteration / params.e_max))
-        lam_inf = psi * (params.lambda_max - params.lambda_min) + params.lambda_min
-        kappa = np.where(lam <= lam_inf, params.kappa_up, params.kappa_down)
-        lam_next = lam - self.dt * kappa * (lam - lam_inf)
+        shift = alteration(wrap_pi(theta_l3 - theta_l0), lam, self.blender, previous, self.dt)
+        theta_l2 = wrap(theta_l0 + shift)
+        altered = wrap_pi(theta_l2 - theta_l0)
+        lam_next = lam_step(lam, altered, self.blender, self.dt)
         theta_tilde = theta.copy()
         theta_tilde[..., self.assisted] = theta_l2
-        return theta_tilde, alteration, lam_next
+        return theta_tilde, altered, lam_next
 
     def advance(
         self, theta: np.ndarray, theta_tilde: np.ndarray, theta_l3: np.ndarray, omega_l3: np.ndarray

@@ -1,20 +1,23 @@
-"""Motion computers: the reference phase θ_ref that the L2 blender pulls toward (section 5.2.2).
+"""Motion computers: the reference phase θ_ref that the L2 blender pulls toward (section 5.2.2, Figure 4).
 
-Every motion computer has the same ports, so one can replace another in a diagram:
+:class:`MotionComputer` is the role: every motion computer has its ports, so one can replace another
+in a diagram:
 
 * input ``theta`` (shape (N,), rad, wrapped): the participants' own phases;
 * input ``lam`` (scalar, rad): the blender's current threshold λ (context for
   policies that plan within the blender's limit);
-* output ``theta_ref`` (scalar, rad, wrapped).
+* output ``theta_ref`` (scalar, rad, wrapped);
 
-:class:`MotionComputer` is the structure of the deliverable's L3 reference: a
-virtual Kuramoto oscillator at the assisted participant's node whose frequency
-a policy nudges every tick. :class:`MeanPhaseMotion` is the simplest
-alternative: the circular mean of the others' phases."""
+and says how often it decides (:attr:`MotionComputer.decision_period`, seconds) and takes the blender it
+works behind (:meth:`MotionComputer.plan_through`). :class:`OscillatorMotion` is the deliverable's L3
+reference: a virtual Kuramoto oscillator at the assisted participant's node whose frequency a policy
+nudges every tick. :class:`MeanPhaseMotion` is the simplest alternative: the circular mean of the
+others' phases."""
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -24,9 +27,9 @@ from cogblocks.blocks.angles import wrap_angle
 from cogblocks.blocks.specs import PHASE
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, positive_int
+from cogblocks.sync.blending import BlenderParams, blender_params
 from cogblocks.sync.coupling import Coupling, checked_graph
 from cogblocks.sync.identification import KuramotoRLS
-from cogblocks.sync.model import BlenderParams
 
 __all__ = [
     "ACTIONS",
@@ -36,6 +39,7 @@ __all__ = [
     "MeanPhaseMotion",
     "MotionComputer",
     "OMEGA_L3_LIMIT",
+    "OscillatorMotion",
     "l3_observation",
 ]
 
@@ -107,10 +111,49 @@ class L3Policy(Protocol):
         """The action index for this tick."""
 
 
-class _MotionPorts(Block):
-    """The ports every motion computer shares."""
+class MotionComputer(Block):
+    """The motion computer of the L2 architecture (Figure 4): the role every implementation plays.
 
-    def __init__(self, n: int, assisted: int, period: float | None) -> None:
+    Ports
+    -----
+    theta : input, shape (N,), rad, wrapped
+        The participants' own phases.
+    lam : input, scalar, rad
+        The blender's threshold λ of this tick (π when unconnected).
+    theta_ref : output, scalar, rad, wrapped
+        The reference the blender pulls the avatar toward.
+
+    Parameters
+    ----------
+    n : int
+        Number of participants (>= 2).
+    assisted : int
+        0-based index of the assisted participant.
+    period : float, optional
+        The block's own step (s); the diagram's by default.
+
+    Notes
+    -----
+    Implementations: :class:`OscillatorMotion` (the deliverable's virtual oscillator, steered by an
+    L3 policy), :class:`MeanPhaseMotion`, :class:`~cogblocks.sync.receding.RecedingPlanMotion` (the
+    planner), :class:`~cogblocks.sync.mpc.MPCMotion`, and the shield
+    :class:`~cogblocks.sync.shielded.ShieldedMotion` around an oscillator; ``cogblocks.diagrams.sync.MOTIONS``
+    names their presets. ``MotionComputer(policy, n=..., ...)``, the name's earlier meaning, still builds
+    an :class:`OscillatorMotion`, with a :class:`DeprecationWarning`; ``MotionComputer(n, assisted)`` is a
+    block with the role's ports that holds θ_ref at 0.
+    """
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> MotionComputer:
+        if cls is MotionComputer and ("policy" in kwargs or (args and callable(getattr(args[0], "act", None)))):
+            warnings.warn(
+                "MotionComputer(policy, ...) is now OscillatorMotion(policy, ...); MotionComputer names the role",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            return super().__new__(OscillatorMotion, *args, **kwargs)
+        return super().__new__(cls, *args, **kwargs)
+
+    def __init__(self, n: int, assisted: int, period: float | None = None) -> None:
         super().__init__(period=period)
         n = positive_int(self, "n", n, minimum=2)
         if isinstance(assisted, bool) or not isinstance(assisted, (int, np.integer)) or not 0 <= assisted < n:
@@ -124,12 +167,23 @@ class _MotionPorts(Block):
 
     _theta_feedthrough = True
 
+    @property
+    def decision_period(self) -> float | None:
+        """Seconds between the block's decisions; ``None``: it decides every tick."""
+        return None
 
-class _IdentifyingMotion(_MotionPorts):
+    def plan_through(self, blender: BlenderParams) -> None:
+        """Take the parameters of the blender the block works behind (:class:`~cogblocks.sync.L2Sync` calls this).
+
+        A motion computer that predicts through the blender plans with them; one that does not ignores them."""
+
+
+class _IdentifyingMotion(MotionComputer):
     """The ports, and what every motion computer that identifies the group online shares.
 
     ``adjacency`` (a graph spec) becomes the dense matrix the models run on, ``blender`` (a
-    :class:`~cogblocks.sync.model.BlenderParams`, the deliverable's by default) the blender they plan through,
+    :class:`~cogblocks.sync.blending.BlenderParams` or a name of ``BLENDERS``, the deliverable's by default; in a
+    diagram, the blender it sits behind: :meth:`plan_through`) the blender they plan through,
     and :class:`~cogblocks.sync.identification.KuramotoRLS` the identifier, whose sums ``info`` and ``rhs`` and
     count of increments ``count`` are block state, so that a snapshot holds what has been identified.
     """
@@ -140,13 +194,21 @@ class _IdentifyingMotion(_MotionPorts):
         super().__init__(n, assisted, period)
         coupling = Coupling(checked_graph(self, adjacency, self.n), self.n, sparse=False)
         self.adjacency = np.asarray(coupling.matrix, dtype=float)
-        if blender is not None and not isinstance(blender, BlenderParams):
-            raise ValueError(f"{type(self).__name__}: blender must be a BlenderParams, got {type(blender).__name__}")
-        self.blender: BlenderParams = blender or BlenderParams()
+        self._blender_given = blender is not None
+        self.blender: BlenderParams = blender_params(type(self).__name__, blender)
         self.rls = KuramotoRLS(self.adjacency, forgetting=forgetting)
         self.add_state("count", 0)  # increments identified
         self.add_state("info", self.rls.info)
         self.add_state("rhs", self.rls.rhs)
+
+    def plan_through(self, blender: BlenderParams) -> None:
+        """Plan through ``blender``, the blender in the diagram; refused if the block was built with another."""
+        if self._blender_given and blender != self.blender:
+            raise ValueError(
+                f"{type(self).__name__}: built to plan through {self.blender}, but the diagram's blender is {blender}; "
+                "leave the motion computer's blender out and the diagram hands it the one it has"
+            )
+        self.blender = blender
 
     def identifier(self) -> KuramotoRLS:
         """The identifier, on this tick's state (a restored snapshot replaces the state's arrays)."""
@@ -154,7 +216,7 @@ class _IdentifyingMotion(_MotionPorts):
         return self.rls
 
 
-class MeanPhaseMotion(_MotionPorts):
+class MeanPhaseMotion(MotionComputer):
     """θ_ref is the circular mean of the other participants' phases.
 
     Needs no training and no model. A natural baseline: it pulls the assisted
@@ -186,8 +248,8 @@ class MeanPhaseMotion(_MotionPorts):
             self.theta_ref.value[...] = wrap_angle(math.atan2(s, c))
 
 
-class MotionComputer(_MotionPorts):
-    """The L3 reference: a virtual oscillator whose frequency a policy steers.
+class OscillatorMotion(MotionComputer):
+    """The deliverable's L3 reference: a virtual oscillator whose frequency a policy steers.
 
     ``θ_ref[k] = θ_L3[k]`` with
     ``θ_L3[k+1] = wrap(θ_L3[k] + dt (ω_L3[k] + gain Σ_j a_aj sin(θ_j[k] − θ_L3[k])))``,
@@ -235,7 +297,7 @@ class MotionComputer(_MotionPorts):
     ) -> None:
         super().__init__(n, assisted, period)
         if not callable(getattr(policy, "act", None)):
-            raise ValueError(f"MotionComputer: policy must have an act(context) method, got {policy!r}")
+            raise ValueError(f"OscillatorMotion: policy must have an act(context) method, got {policy!r}")
         self.policy = policy
         self.gain = finite_number(self, "gain", gain, low=0.0)
         self.omega_init = finite_number(self, "omega_init", omega_init, low=-OMEGA_L3_LIMIT, high=OMEGA_L3_LIMIT)
@@ -243,6 +305,11 @@ class MotionComputer(_MotionPorts):
         self.others = np.array([j for j in range(n) if j != assisted])
         self.add_state("theta_l3", 0.0)
         self.add_state("omega_prev", self.omega_init)
+
+    def plan_through(self, blender: BlenderParams) -> None:
+        """Hand ``blender`` to the policy, if it predicts (a :class:`~cogblocks.sync.lookahead.LookaheadPolicy`)."""
+        if callable(getattr(self.policy, "plan_through", None)):
+            self.policy.plan_through(blender)
 
     def reset(self) -> None:
         super().reset()

@@ -233,6 +233,11 @@ class MPCMotion(_IdentifyingMotion):
         self.solve_ms: list[float] = []
         self.tick_ms: list[float] = []
 
+    @property
+    def decision_period(self) -> float:
+        """Seconds between plans: ``replan_every`` ticks of the block's step (10 ms before compiling)."""
+        return self.replan_every * (self.dt * self.every if getattr(self, "dt", None) else 0.01)
+
     def setup(self) -> None:
         period = self.replan_every * self.dt * self.every
         steps = round(period / self.step)
@@ -273,7 +278,7 @@ class MPCMotion(_IdentifyingMotion):
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
         good = usable_phases(theta) and math.isfinite(lam)
         # the real blender's λ never leaves its range; a value outside is a glitch the model must not divide by
-        lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max) if good else lam
+        lam = min(max(lam, self.blender.lam_min), self.blender.lam_max) if good else lam
         if good:
             self._identify(theta, lam)
         if k % self.replan_every == 0:

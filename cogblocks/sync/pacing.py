@@ -31,8 +31,8 @@ import numpy as np
 
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
 from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
+from cogblocks.sync.blending import BlenderParams, lam_step
 from cogblocks.sync.identification import usable_phases
-from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.motion import OMEGA_L3_LIMIT, _IdentifyingMotion
 
 __all__ = ["MEAN", "NONE", "PACE", "PacingMotion", "euler_step", "margin_choice", "predicted_order"]
@@ -116,7 +116,6 @@ def euler_step(
     n = theta.shape[1]
     others = np.arange(n) != assisted
     pace, mean = kinds == PACE, kinds == MEAN
-    span, low = blender.lambda_max - blender.lambda_min, blender.lambda_min
     sin, cos = np.sin(theta), np.cos(theta)
     l0 = theta[:, assisted]
     d = np.where(pace, wrap_pi(anchors + values * elapsed - l0), 0.0)
@@ -127,9 +126,7 @@ def euler_step(
     sin[:, assisted], cos[:, assisted] = np.sin(l0 + shift), np.cos(l0 + shift)
     r = np.hypot(sin.sum(axis=1), cos.sum(axis=1)) / n
     # eq. (5)-(6): λ relaxes toward λ∞(e), fast down (κ⁻), slow up (κ⁺)
-    lam_inf = np.maximum(0.0, 1.0 - np.abs(shift) / blender.e_max) * span + low
-    kappa = np.where(lam <= lam_inf, blender.kappa_up, blender.kappa_down)
-    lam = lam - step * kappa * (lam - lam_inf)
+    lam = lam_step(lam, shift, blender, step)
     # Σ_j a_ij sin(θ̃_j − θ̃_i) = cos θ̃_i (A sin θ̃)_i − sin θ̃_i (A cos θ̃)_i
     pull = cos * (sin @ adjacency.T) - sin * (cos @ adjacency.T)
     return theta + step * (omega + gain * pull), lam, r
@@ -248,6 +245,11 @@ class PacingMotion(_IdentifyingMotion):
         self.decide_ms: list[float] = []
         self.choices: list[int] = []
 
+    @property
+    def decision_period(self) -> float:
+        """Seconds between decisions: ``decide_every`` ticks of the block's step (10 ms before compiling)."""
+        return self.decide_every * (self.dt * self.every if getattr(self, "dt", None) else 0.01)
+
     def reset(self) -> None:
         super().reset()
         self.decide_ms, self.choices = [], []
@@ -285,7 +287,7 @@ class PacingMotion(_IdentifyingMotion):
         if not (usable_phases(theta) and math.isfinite(lam)):
             self.previous[...] = math.nan
         else:
-            lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
+            lam = min(max(lam, self.blender.lam_min), self.blender.lam_max)
             ref = self._reference(theta)
             seen = self._identify(theta, lam, ref, dt)
             model = self.model() if self.due else None
@@ -341,8 +343,7 @@ class PacingMotion(_IdentifyingMotion):
         pull = np.cos(seen) * (self.adjacency @ np.sin(seen)) - np.sin(seen) * (self.adjacency @ np.cos(seen))
         theta_next = theta + dt * (omega + gain * pull)
         e = abs(float(wrap_pi(seen[self.assisted] - theta[self.assisted])))
-        lam_inf = max(0.0, 1.0 - e / b.e_max) * (b.lambda_max - b.lambda_min) + b.lambda_min
-        lam_next = lam - dt * (b.kappa_up if lam <= lam_inf else b.kappa_down) * (lam - lam_inf)
+        lam_next = lam_step(lam, e, b, dt)
         step = self._stable_step(gain)
         steps = min(self.max_steps, max(1, round(self.horizon / step)))
         cands = self.candidates(theta_next, ref, omega, dt)

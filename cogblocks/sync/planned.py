@@ -25,10 +25,11 @@ import numpy as np
 from cogblocks.blocks.angles import wrap_angle
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sim.params import finite_number, positive_int
+from cogblocks.sync.blending import BlenderParams
 from cogblocks.sync.identification import usable_phases
-from cogblocks.sync.model import DT, BlenderParams
+from cogblocks.sync.model import DT
 from cogblocks.sync.motion import _IdentifyingMotion
-from cogblocks.sync.whole_run import plan_alterations, tick_model
+from cogblocks.sync.whole_run import initial_state, plan_alterations, played, tick_model
 
 __all__ = ["SWEEPS", "PlannedMotion", "checked_sweeps"]
 
@@ -138,7 +139,7 @@ class PlannedMotion(_IdentifyingMotion):
         if self.count >= self.min_ticks and rls.gain_excitation() >= self.min_excitation:
             omega, gain = rls.estimate()
             if np.isfinite(omega).all() and math.isfinite(gain):
-                lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
+                lam = min(max(lam, self.blender.lam_min), self.blender.lam_max)
                 self._make_plan(k, theta, lam, omega, gain, dt)
 
     def _make_plan(self, k: int, theta: np.ndarray, lam: float, omega: np.ndarray, gain: float, dt: float) -> None:
@@ -152,12 +153,13 @@ class PlannedMotion(_IdentifyingMotion):
         start = time.thread_time()
         omega_hat = tuple(float(w) for w in omega)
         model = SyncGroup("identified", self.n, float(gain), omega_hat, self.assisted, self.end, self.adjacency)
-        x_next, _ = tick_model(model, self.adjacency, self.blender)(np.r_[theta, lam], 0.0)
+        # nothing is altered before the plan: the blender's last alteration is 0
+        x_next, _ = tick_model(model, self.adjacency, self.blender)(initial_state(theta, lam, self.blender), 0.0)
         state = np.asarray(x_next, dtype=float).ravel()
         s, states, r = plan_alterations(
             model, self.adjacency, self.blender, state, n_ticks, self.sweeps, max_iter=self.max_iter
         )
-        self.plan, self.plan_start = states[:, self.n] * s, k + 1
+        self.plan, self.plan_start = played(states, s, self.n, self.blender), k + 1
         self.predicted = r
         self.plan_ms = (time.thread_time() - start) * 1e3
 

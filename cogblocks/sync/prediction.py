@@ -15,16 +15,12 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cogblocks.sync.model import BlenderParams
+from cogblocks.sync.blending import BlenderParams, lam_rate
 
 __all__ = ["SMOOTHING", "rk4_step", "seen_order", "sync_ode"]
 
 #: Width (rad) of the smoothing of |e|, max(0, ·) and the κ switch.
 SMOOTHING = 1e-3
-
-
-def _soft_plus(x: Any, width: float) -> Any:
-    return 0.5 * (x + ca.sqrt(x * x + width * width))
 
 
 def _blend(x: Any, n: int, assisted: int, blender: BlenderParams, p: int) -> tuple[Any, Any]:
@@ -56,12 +52,7 @@ def sync_ode(adjacency: np.ndarray, assisted: int, blender: BlenderParams, p: in
     a = ca.sparsify(ca.DM(adjacency))  # a ring's zeros cost nothing
     # Σ_j a_ij sin(s_j − s_i) = cos s_i (A sin s)_i − sin s_i (A cos s)_i
     pull = cos_s * ca.mtimes(a, sin_s) - sin_s * ca.mtimes(a, cos_s)
-    abs_e = ca.sqrt(shift * shift + SMOOTHING**2)
-    psi = _soft_plus(1.0 - abs_e / blender.e_max, SMOOTHING)
-    lam = x[n]
-    lam_inf = psi * (blender.lambda_max - blender.lambda_min) + blender.lambda_min
-    gap = lam - lam_inf
-    dlam = -(blender.kappa_up * gap + (blender.kappa_down - blender.kappa_up) * _soft_plus(gap, SMOOTHING))
+    dlam = lam_rate(x[n], shift, blender, SMOOTHING)
     dx = ca.vertcat(omega + gain * pull, dlam, u)
     return ca.Function("sync_ode", [x, u, omega, gain], [dx], ["x", "u", "omega", "gain"], ["dx"])
 

@@ -35,13 +35,16 @@ import numpy as np
 from cogblocks.blocks.angles import wrap_angle, wrap_pi
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sim.params import finite_number, one_of, positive_int
+from cogblocks.sync.blending import BlenderParams, alteration
 from cogblocks.sync.identification import usable_phases
-from cogblocks.sync.model import DT, BlenderParams
+from cogblocks.sync.model import DT
 from cogblocks.sync.motion import _IdentifyingMotion
 from cogblocks.sync.planned import checked_sweeps
 from cogblocks.sync.whole_run import (
     alteration_rollout,
     identified_tick_model,
+    initial_state,
+    played,
     refine_plan,
     rollout_function,
     rule_plan,
@@ -178,6 +181,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
         self.add_state("pending_start", -1)  # -1: no decision pending
         self.add_state("next_decision", -1)  # the first tick a decision may start (-1: as soon as identified)
         self.add_state("theta_ref_now", 0.0)
+        self.add_state("shift", 0.0)  # the blender's alteration of the last tick, as its law gives it
         self._model: ca.Function | None = None  # identified_tick_model, and the solvers built on it
         self._solvers: dict = {}
         self._executor: ThreadPoolExecutor | None = None
@@ -185,6 +189,11 @@ class RecedingPlanMotion(_IdentifyingMotion):
         self.decide_ms: list[float] = []
         self.plans: list[tuple[int, np.ndarray, np.ndarray]] = []
         self.late = 0
+
+    @property
+    def decision_period(self) -> float:
+        """Seconds between decisions (``decide_every``)."""
+        return self.decide_ticks * DT
 
     def reset(self) -> None:
         super().reset()
@@ -222,7 +231,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
         if not (usable_phases(theta) and math.isfinite(lam)):
             self.previous[...] = math.nan
             return
-        lam = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
+        lam = min(max(lam, self.blender.lam_min), self.blender.lam_max)
         dt = self.dt * self.every
         rls = self.identifier()
         n = self.n
@@ -230,7 +239,10 @@ class RecedingPlanMotion(_IdentifyingMotion):
             self.count += 1
         l0 = float(theta[self.assisted])
         seen = theta.copy()
-        seen[self.assisted] = wrap_angle(l0 + min(max(float(wrap_pi(self.theta_ref_now - l0)), -lam), lam))
+        # the alteration the blender gives this tick, by its own law (the continuous one remembers the last)
+        last_shift = self.shift
+        self.shift = alteration(float(wrap_pi(self.theta_ref_now - l0)), lam, self.blender, last_shift, dt)
+        seen[self.assisted] = wrap_angle(l0 + self.shift)
         self.previous[:n], self.previous[n:] = seen, theta
         if k < self.next_decision or self._future is not None or self.pending_start >= 0:
             return
@@ -250,7 +262,8 @@ class RecedingPlanMotion(_IdentifyingMotion):
             stop = stop if self.horizon_ticks is None else min(stop, start + self.horizon_ticks)
         if stop <= start:
             return
-        task = (omega.copy(), float(gain), np.r_[theta, lam], k, start, stop, self._committed())
+        state = initial_state(theta, lam, self.blender, last_shift)
+        task = (omega.copy(), float(gain), state, k, start, stop, self._committed())
         if self.worker == "inline":
             self._hold(self._decide(*task))
             return
@@ -309,7 +322,9 @@ class RecedingPlanMotion(_IdentifyingMotion):
         omega_hat = tuple(float(w) for w in omega)
         model = SyncGroup("identified", self.n, gain, omega_hat, self.assisted, stop * DT, self.adjacency)
         tick = self._tick()
-        x = np.r_[np.asarray(state, dtype=float), omega, gain]  # ω and K ride in the state of the one tick model
+        state = np.asarray(state, dtype=float)
+        # ω and K ride in the state of the one tick model, before the blender's memory
+        x = np.r_[state[: self.n + 1], omega, gain, state[self.n + 1 :]]
         for j in range(k, start):  # through the plan in force to the new plan's first tick
             i = -1 if committed is None else j - committed[2]
             a = float(committed[0][i]) if committed is not None and 0 <= i < len(committed[0]) else 0.0
@@ -337,7 +352,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
             s = np.zeros(n_ticks)
             states, r = alteration_rollout(roll, x, s)
         self.decide_ms.append((time.thread_time() - clock) * 1e3)
-        return s, states[:, self.n] * s, start, r
+        return s, played(states, s, self.n, self.blender), start, r
 
     def _extended(
         self, model: SyncGroup, tick: ca.Function, x: np.ndarray, old: np.ndarray, n_ticks: int

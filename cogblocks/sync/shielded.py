@@ -1,6 +1,6 @@
 """A shield for a learned L3 policy: its reference is followed only while a prediction says it does not lower r.
 
-:class:`ShieldedMotion` runs an L3 motion computer (:class:`~cogblocks.sync.motion.MotionComputer`, e.g. the
+:class:`ShieldedMotion` runs an L3 motion computer (:class:`~cogblocks.sync.motion.OscillatorMotion`, e.g. the
 trained DQN's virtual oscillator) unchanged, every tick, and decides every period whether to emit its reference
 or to do nothing (θ_ref = θ_L0, which leaves the assisted participant's phase unaltered: the group runs as
 without L2). The decision is :class:`~cogblocks.sync.pacing.PacingMotion`'s, on a different pair of candidates:
@@ -36,7 +36,7 @@ from cogblocks.blocks.angles import wrap_angle
 from cogblocks.sim.params import finite_number
 from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import BlenderParams
-from cogblocks.sync.motion import L3Policy, MotionComputer
+from cogblocks.sync.motion import L3Policy, OscillatorMotion
 from cogblocks.sync.pacing import NONE, PACE, PacingMotion, euler_step, margin_choice
 
 __all__ = ["BACKUP", "DECIDE_EVERY", "FOLLOW", "HORIZON", "MARGIN", "PolicyRollout", "ShieldedMotion"]
@@ -161,7 +161,7 @@ class ShieldedMotion(PacingMotion):
 
     Parameters
     ----------
-    motion : MotionComputer
+    motion : OscillatorMotion
         The shielded policy's motion computer. Its policy must choose from the context alone (the prediction asks
         it about predicted contexts between the block's own ticks); a policy with a ``predictor()`` method (e.g.
         :meth:`DQNPolicy.predictor() <cogblocks.sync.dqn_policy.DQNPolicy.predictor>`) is asked through the
@@ -196,7 +196,7 @@ class ShieldedMotion(PacingMotion):
 
     Bad data policy: on a tick with a phase that is not finite and within one turn of [0, 2π), or a non-finite
     λ, nothing is identified or decided (a decision due then is taken at the next good tick) and the policy is
-    not asked: its oscillator coasts at its last frequency, as in :class:`MotionComputer`; a prediction in
+    not asked: its oscillator coasts at its last frequency, as in :class:`OscillatorMotion`; a prediction in
     progress advances (it works on its own predicted state). When following, θ_ref is the oscillator's phase;
     when doing nothing, θ_ref holds its last value on a tick with a bad phase. A finite λ outside the blender's
     [λ_min, λ_max] is clipped to it for the identification and the prediction.
@@ -204,7 +204,7 @@ class ShieldedMotion(PacingMotion):
 
     def __init__(
         self,
-        motion: MotionComputer,
+        motion: OscillatorMotion,
         *,
         adjacency: Any = "ring",
         blender: BlenderParams | None = None,
@@ -217,8 +217,8 @@ class ShieldedMotion(PacingMotion):
         min_excitation: float = 1.0,
         period: float | None = None,
     ) -> None:
-        if not isinstance(motion, MotionComputer):
-            raise ValueError(f"ShieldedMotion: motion must be a MotionComputer, got {type(motion).__name__}")
+        if not isinstance(motion, OscillatorMotion):
+            raise ValueError(f"ShieldedMotion: motion must be an OscillatorMotion, got {type(motion).__name__}")
         super().__init__(
             motion.n,
             motion.assisted,
@@ -277,7 +277,7 @@ class ShieldedMotion(PacingMotion):
             self.previous[...] = math.nan
             self.theta_l3 = wrap_angle(self.theta_l3 + dt * self.omega_prev)
         else:
-            clipped = min(max(lam, self.blender.lambda_min), self.blender.lambda_max)
+            clipped = min(max(lam, self.blender.lam_min), self.blender.lam_max)
             ref = self.theta_l3 if self.mode == FOLLOW else float(theta[self.assisted])
             self._identify(theta, clipped, ref, dt)
             if self.due:
@@ -329,7 +329,7 @@ class ShieldedMotion(PacingMotion):
         """Predict at most ``budget`` more ticks of ``job``'s policy part, then ``backup_budget`` backup steps.
 
         Row 1's reference of a tick is the oscillator's phase then; the policy (:attr:`predictor`) acts on the
-        phases and λ of row 1, and the oscillator moves as :meth:`MotionComputer.step_oscillator` moves it. In
+        phases and λ of row 1, and the oscillator moves as :meth:`OscillatorMotion.step_oscillator` moves it. In
         the backup part both rows do nothing.
         """
         self._advance_following(job, budget)

@@ -158,16 +158,13 @@ class LambdaReport:
 
 
 def _lam_inf_expr(blender: Blender, lam: ca.SX) -> ca.SX:
-    """λ∞ of eq. (5) at e = λ, as a casadi expression mirroring :meth:`Blender.lam_inf`."""
-    import casadi as ca  # loaded on first check, so that importing the blender stays light
+    """λ∞ of eq. (5) at e = λ, as a casadi expression: the law of :mod:`cogblocks.sync.blending`."""
+    import casadi  # noqa: F401  (loaded on first check, so that importing the blender stays light)
 
-    x = lam / blender.e_max
-    if blender.psi == "triangular":
-        psi = ca.fmax(0.0, 1.0 - ca.fabs(x))
-    else:
-        # guard the denominator so the discarded branch stays finite at |x| >= 1
-        psi = ca.if_else(x * x < 1.0, ca.exp(1.0 - 1.0 / ca.fmax(1.0 - x * x, 1e-300)), 0.0)
-    return psi * (blender.lam_max - blender.lam_min) + blender.lam_min
+    from cogblocks.sync.blending import BlenderParams, lam_inf
+
+    params = blender if isinstance(blender, BlenderParams) else blender.params
+    return lam_inf(lam, params)
 
 
 def _equilibrium(blender: Blender) -> tuple[float, float, float]:

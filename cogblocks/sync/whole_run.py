@@ -19,17 +19,22 @@ search with:
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import casadi as ca
 import numpy as np
 
 from cogblocks.data.groups import SyncGroup
-from cogblocks.sync.model import DT, BlenderParams
+from cogblocks.sync.blending import BlenderParams, alteration, lam_step
+from cogblocks.sync.model import DT
 
 __all__ = [
     "CHUNK",
     "alteration_rollout",
     "identified_tick_model",
+    "initial_state",
+    "memory",
+    "played",
     "plan_alterations",
     "refine_plan",
     "rule_plan",
@@ -56,35 +61,63 @@ def _tick(
     adjacency: np.ndarray,
     params: BlenderParams,
 ) -> tuple[ca.SX, ca.SX, ca.SX]:
-    """One tick's expressions from ``x = (θ, λ, …)``: the next θ, the next λ and the r of this tick."""
+    """One tick's expressions from ``x = (θ, λ, …, a_prev)``: the next θ, the next λ, the r of this tick and the
+    alteration of this tick (``a_prev`` is the state's last entry, there only with a slew limit)."""
     theta, lam = x[:n], x[n]
-    alteration = lam * s
-    seen = ca.vertcat(theta[:assisted], theta[assisted] + alteration, theta[assisted + 1 :])
+    shift = lam * s
+    if params.slew is not None:
+        # a plan asks for alterations within ±λ, where the continuous law's unwrapping changes nothing: the
+        # slew limit is what the blender does to them
+        shift = alteration(shift, lam, replace(params, continuous=False), x[-1], DT)
+    seen = ca.vertcat(theta[:assisted], theta[assisted] + shift, theta[assisted + 1 :])
     sin_s, cos_s = ca.sin(seen), ca.cos(seen)
     r = ca.sqrt(ca.sum1(cos_s) ** 2 + ca.sum1(sin_s) ** 2) / n
     a = ca.sparsify(ca.DM(adjacency))
     pull = cos_s * ca.mtimes(a, sin_s) - sin_s * ca.mtimes(a, cos_s)
-    span = params.lambda_max - params.lambda_min
-    lam_inf = params.lambda_min + span * ca.fmax(0.0, 1.0 - ca.fabs(alteration) / params.e_max)
-    kappa = ca.if_else(lam <= lam_inf, params.kappa_up, params.kappa_down)
-    return theta + DT * (omega + gain * pull), lam - DT * kappa * (lam - lam_inf), r
+    return theta + DT * (omega + gain * pull), lam_step(lam, shift, params, DT), r, shift
+
+
+def memory(params: BlenderParams) -> int:
+    """Entries the model's state carries for the blender's memory: the last alteration (1) with a slew limit, else 0.
+
+    The state of :func:`tick_model` is ``(θ, λ)`` followed by them, that of :func:`identified_tick_model`
+    ``(θ, λ, ω, K)`` followed by them."""
+    return 0 if params.slew is None else 1
+
+
+def played(states: np.ndarray, s: np.ndarray, n: int, params: BlenderParams) -> np.ndarray:
+    """The alterations (rad) the blender gives a plan of fractions ``s`` whose states before each tick are
+    ``states``: ``λ_k s_k``, or with a slew limit what the limit leaves of them (what a motion computer then asks
+    for: the blender passes it unchanged)."""
+    requested = states[:, n] * s
+    if not memory(params) or not len(s):
+        return requested
+    out = np.empty_like(requested)
+    out[:-1] = states[1:, -1]
+    out[-1] = alteration(requested[-1], states[-1, n], replace(params, continuous=False), states[-1, -1], DT)
+    return out
+
+
+def initial_state(theta: np.ndarray, lam: float, params: BlenderParams, previous: float = 0.0) -> np.ndarray:
+    """``(θ, λ)``, with the last alteration ``previous`` appended when the blender has a slew limit."""
+    return np.r_[theta, lam, [previous] * memory(params)]
 
 
 def tick_model(group: SyncGroup, adjacency: np.ndarray, params: BlenderParams) -> ca.Function:
     """One tick of the exact discrete model: ``(x, s) -> (x_next, r)``, ``x = (θ_1 … θ_N, λ)``."""
-    x, s = ca.SX.sym("x", group.n + 1), ca.SX.sym("s")
+    x, s = ca.SX.sym("x", group.n + 1 + memory(params)), ca.SX.sym("s")
     omega = ca.DM(np.asarray(group.omega, dtype=float))
-    theta, lam, r = _tick(x, s, omega, group.gain, group.n, group.assisted, adjacency, params)
-    return ca.Function("tick", [x, s], [ca.vertcat(theta, lam), r])
+    theta, lam, r, shift = _tick(x, s, omega, group.gain, group.n, group.assisted, adjacency, params)
+    return ca.Function("tick", [x, s], [ca.vertcat(theta, lam, *[shift] * memory(params)), r])
 
 
 def identified_tick_model(n: int, assisted: int, adjacency: np.ndarray, params: BlenderParams) -> ca.Function:
     """:func:`tick_model` with the model's parameters in the state: ``x = (θ_1 … θ_N, λ, ω_1 … ω_N, K)``, ω and K
     carried unchanged. One function (and every solver built on it) serves every model identified for a group."""
-    x, s = ca.SX.sym("x", 2 * n + 2), ca.SX.sym("s")
+    x, s = ca.SX.sym("x", 2 * n + 2 + memory(params)), ca.SX.sym("s")
     omega, gain = x[n + 1 : 2 * n + 1], x[2 * n + 1]
-    theta, lam, r = _tick(x, s, omega, gain, n, assisted, adjacency, params)
-    return ca.Function("identified_tick", [x, s], [ca.vertcat(theta, lam, omega, gain), r])
+    theta, lam, r, shift = _tick(x, s, omega, gain, n, assisted, adjacency, params)
+    return ca.Function("identified_tick", [x, s], [ca.vertcat(theta, lam, omega, gain, *[shift] * memory(params)), r])
 
 
 def alteration_rollout(roll: ca.Function, x0: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -126,22 +159,22 @@ def rule_rollouts(
     others = np.arange(n) != i
     omega = np.asarray(group.omega, dtype=float)
     theta, lam = np.tile(state[:n], (b, 1)), np.full(b, state[n])
+    shift = np.full(b, state[-1] if memory(params) else 0.0)
     total = np.zeros((n_ticks, b) if record else b)
     s = np.zeros((n_ticks, b)) if record else None
-    slope = (params.lambda_max - params.lambda_min) / params.e_max
     for k in range(n_ticks):
         z = np.exp(1j * theta)
         reference = np.where(kind == 1, np.angle(z[:, others].sum(axis=1)), phase0 + freq * (k * DT))
         l0 = theta[:, i]
-        alteration = np.where(kind == 0, 0.0, np.clip(np.mod(reference - l0 + np.pi, 2 * np.pi) - np.pi, -lam, lam))
-        z[:, i] = np.exp(1j * (l0 + alteration))
+        d = np.where(kind == 0, 0.0, np.mod(reference - l0 + np.pi, 2 * np.pi) - np.pi)
+        shift = alteration(d, lam, params, shift, DT)
+        z[:, i] = np.exp(1j * (l0 + shift))
         r = np.abs(z.sum(axis=1)) / n
         if record:
-            total[k], s[k] = r, alteration / lam
+            total[k], s[k] = r, shift / lam
         else:
             total += r
-        lam_inf = np.maximum(params.lambda_min, params.lambda_max - slope * np.abs(alteration))
-        lam = lam - DT * np.where(lam <= lam_inf, params.kappa_up, params.kappa_down) * (lam - lam_inf)
+        lam = lam_step(lam, shift, params, DT)
         theta = theta + DT * (omega + group.gain * (z.conj() * (z @ adjacency.T)).imag)
     return total, (np.clip(s, -1.0, 1.0) if record else None)
 

@@ -100,7 +100,7 @@ class SyncEnv:
         self.k = 0
         self.theta = np.zeros((batch, n))
         self.theta_l3 = np.zeros(batch)
-        self.lam = np.full(batch, self.model.blender.lambda_max if self.model.blender else np.nan)
+        self.lam = np.full(batch, self.model.blender.lam_max if self.model.blender else np.nan)
         self.omega_prev = self.model.omega.mean(axis=-1)
         self.r_sum = np.zeros(batch)
         self.alteration_sum = np.zeros(batch)

@@ -29,7 +29,7 @@ TICKS = round(GROUP.duration / DT) + 1
 
 
 def _roll(group: SyncGroup, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    return alteration_rollout(alteration_model(group), np.r_[np.zeros(group.n), BlenderParams().lambda_max], s)
+    return alteration_rollout(alteration_model(group), np.r_[np.zeros(group.n), BlenderParams().lam_max], s)
 
 
 def test_doing_nothing_is_the_run_without_l2():
@@ -44,7 +44,7 @@ def test_model_of_any_alteration_is_the_blocks():
     states, r = _roll(GROUP, s)
     theta_ref = states[:, GROUP.assisted] + states[:, GROUP.n] * s
     assert resimulate(GROUP, theta_ref) == pytest.approx(float(r.mean()), abs=1e-12)
-    assert np.all(states[:, GROUP.n] <= BlenderParams().lambda_max + 1e-12)
+    assert np.all(states[:, GROUP.n] <= BlenderParams().lam_max + 1e-12)
 
 
 def _brute_force(group: SyncGroup, blocks: int, levels: np.ndarray) -> float:
@@ -53,7 +53,7 @@ def _brute_force(group: SyncGroup, blocks: int, levels: np.ndarray) -> float:
     s = np.repeat(plans, -(-TICKS // blocks), axis=1)[:, :TICKS]
     model = SyncModel.from_group(group)
     theta = np.zeros((len(plans), group.n))
-    lam = np.full(len(plans), model.blender.lambda_max)
+    lam = np.full(len(plans), model.blender.lam_max)
     total = np.zeros(len(plans))
     for k in range(TICKS):
         reference = theta[:, group.assisted] + lam * s[:, k]  # the blender clips it to exactly λ · s
@@ -70,7 +70,7 @@ def test_bound_beats_brute_force_and_its_starts():
     assert found["r"] == pytest.approx(found["r_model"], abs=1e-12)
     assert found["r"] >= max(found["starts"].values()) - 1e-12
     without = float(Simulator(pop_sync(GROUP, l2=False)).run(n_steps=TICKS)["r"].mean())
-    mean = float(Simulator(pop_sync(GROUP, motion="mean")).run(n_steps=TICKS)["r"].mean())
+    mean = float(Simulator(pop_sync(GROUP, motion="mean", blender="deliverable")).run(n_steps=TICKS)["r"].mean())
     assert found["starts"]["none"] == pytest.approx(without, abs=1e-12)
     assert found["starts"]["mean"] == pytest.approx(mean, abs=1e-12)
     assert resimulate(GROUP, found["theta_ref"]) == found["r"]
@@ -81,7 +81,7 @@ def test_default_policy_start_is_its_closed_loop():
     group = dataclasses.replace(TABLE2[1], duration=8.0)  # its first decision applies at 4 s
     ticks = round(group.duration / DT) + 1
     motion = GuardedPacingMotion.for_trial(group.n, group.assisted, adjacency=group.graph, end=group.duration)
-    guard = float(Simulator(pop_sync(group, motion=motion)).run(n_steps=ticks)["r"].mean())
+    guard = float(Simulator(pop_sync(group, motion=motion, blender="deliverable")).run(n_steps=ticks)["r"].mean())
     without = float(Simulator(pop_sync(group, l2=False)).run(n_steps=ticks)["r"].mean())
     found = windowed_control_bound(group, pace=False, guard=True, max_iter=5, details=True)
     assert guard > without + 0.01  # the policy acts within the run: the start is not doing nothing

@@ -139,7 +139,7 @@ def test_diagram_and_model_agree_on_a_weighted_directed_graph():
     )
     np.testing.assert_array_equal(motion.coupling, a[2])
     n_steps = round(group.duration / DT) + 1
-    r_diagram = Simulator(pop_sync(group, motion=motion)).run(n_steps=n_steps)["r"].mean()
+    r_diagram = Simulator(pop_sync(group, motion=motion, blender="deliverable")).run(n_steps=n_steps)["r"].mean()
     r_model = evaluate(hold_policy(), group)["r_with"]
     assert abs(r_diagram - r_model) < 1e-9
     without = Simulator(pop_sync(group, l2=False), probes=["group.theta"]).run(n_steps=50)["group.theta"]

@@ -45,7 +45,7 @@ def test_pop_sync_with_mean_motion_matches_the_equations():
         return np.angle(np.exp(1j * theta[others]).mean())
 
     expected = reference_closed_loop(group, 1001, circ_mean)
-    got = Simulator(pop_sync(1, motion="mean")).run(n_steps=1001)["r"]
+    got = Simulator(pop_sync(1, motion="mean", blender="deliverable")).run(n_steps=1001)["r"]
     np.testing.assert_allclose(got, expected, atol=1e-9)
 
 
@@ -58,7 +58,7 @@ def test_without_l2_reproduces_table3_with_table2_numbering(group, r_without):
 
 
 def test_l2_is_one_swappable_block():
-    d = pop_sync(3, motion="mean")
+    d = pop_sync(3, motion="mean", blender="deliverable")
     assert isinstance(d["l2"], L2Sync)
     assert {"l2.select_l0", "l2.motion", "l2.blender"} <= set(d.compile().blocks)
     slow = Blender(kappa_minus=1.5)
@@ -80,7 +80,7 @@ def test_motion_computers_share_ports_and_checks():
     l3 = MotionComputer(Hold(), n=group.n, assisted=group.assisted, gain=group.gain, omega_init=4.0)
     assert set(mean.inputs) == set(l3.inputs) == {"theta", "lam"}
     assert set(mean.outputs) == set(l3.outputs) == {"theta_ref"}
-    d = pop_sync(2, motion=mean)
+    d = pop_sync(2, motion=mean, blender="deliverable")
     d.replace("l2.motion", l3)
     Simulator(d).run(n_steps=5)
     with pytest.raises(ValueError, match="MotionComputer: policy must have an act"):
@@ -91,9 +91,9 @@ def test_motion_computers_share_ports_and_checks():
     with pytest.raises(ValueError, match=r"MeanPhaseMotion: assisted must be a 0-based index in \[0, 2\], got 3"):
         MeanPhaseMotion(3, 3)
     with pytest.raises(ValueError, match="pop_sync: group must be one of"):
-        pop_sync(4)
+        pop_sync(4, blender="deliverable")
     with pytest.raises(ValueError, match="pop_sync: motion must be one of"):
-        pop_sync(1, motion="psychic")
+        pop_sync(1, motion="psychic", blender="deliverable")
 
 
 def test_virtual_oscillator_follows_its_equation():
@@ -128,7 +128,7 @@ def test_virtual_oscillator_follows_its_equation():
 
 def test_run_sync_mean_policy_improves_every_group():
     for group in (1, 3):
-        result = run_sync(group, ["mean"])
+        result = run_sync(group, ["mean"], blender="deliverable")
         row = result["results"][0]
         assert row["r_with"] > result["r_without"]
         assert 0 < row["mean_dev_rad"] <= row["max_dev_rad"] <= np.pi / 2 + 1e-9  # bounded by λ_max
@@ -154,7 +154,9 @@ def test_blender_unstable_rate_refused_in_ready_diagram():
 def test_position_domain_estimates_phases_from_arm_positions():
     n = 1001
     probes = {"est": "sensing.theta_hat", "true": "group.theta", "p": "sensing.p"}
-    trace = Simulator(pop_sync(1, motion="mean", domain="position"), probes=probes).run(n_steps=n)
+    trace = Simulator(pop_sync(1, motion="mean", domain="position", blender="deliverable"), probes=probes).run(
+        n_steps=n
+    )
     # arm positions are cosines of the true phases (150 mm, 1 mm noise)
     np.testing.assert_allclose(trace["p"], 150 * np.cos(trace["true"]), atol=6.0)
     err = np.abs(np.angle(np.exp(1j * (trace["est"] - trace["true"]))))
@@ -162,7 +164,7 @@ def test_position_domain_estimates_phases_from_arm_positions():
     r_without = Simulator(pop_sync(1, l2=False)).run(n_steps=n)["r"].mean()
     assert trace["r"].mean() > r_without  # the L2 still helps on estimated phases
     with pytest.raises(ValueError, match="pop_sync: domain must be 'phase' or 'position', got 'velocity'"):
-        pop_sync(1, domain="velocity")
+        pop_sync(1, domain="velocity", blender="deliverable")
 
 
 def test_arm_positions_block():
@@ -181,7 +183,7 @@ def test_arm_positions_block():
 def test_trained_and_model_based_policies_beat_the_deliverable_on_group_1():
     from cogblocks.data.groups import TABLE3_CHANGE_PCT
 
-    result = run_sync(1, ["dqn", "lookahead"])
+    result = run_sync(1, ["dqn", "lookahead"], blender="deliverable")
     for row in result["results"]:
         assert row["change_pct"] >= TABLE3_CHANGE_PCT[1], row
 
@@ -191,13 +193,13 @@ def test_diagram_with_dqn_policy_matches_the_training_environment():
     from cogblocks.training.sync_env import evaluate
 
     env_result = evaluate(DQNPolicy.default(), TABLE2[1])
-    r = Simulator(pop_sync(1, motion="dqn_raw")).run(n_steps=1001)["r"]
+    r = Simulator(pop_sync(1, motion="dqn_raw", blender="deliverable")).run(n_steps=1001)["r"]
     assert float(r.mean()) == pytest.approx(env_result["r_with"], abs=1e-9)
 
 
 def test_snapshot_of_the_closed_loop_replays_identically():
     # issue contract: run 500, snapshot, run 500; restore and run 500 again -> identical trace
-    sim = Simulator(pop_sync(3, motion="dqn"), probes={"l2": "l2.theta_l2", "lam": "l2.lam"})
+    sim = Simulator(pop_sync(3, motion="dqn", blender="deliverable"), probes={"l2": "l2.theta_l2", "lam": "l2.lam"})
     sim.run(n_steps=500)
     snapshot = sim.state_dict()
     first = sim.run(n_steps=500)

@@ -10,7 +10,7 @@ from cogblocks.sim import Simulator
 
 
 def test_position_domain_with_kalman_front_end_tracks_group1():
-    d = pop_sync(1, domain="position", front_end="kalman")
+    d = pop_sync(1, domain="position", front_end="kalman", blender="deliverable")
     assert isinstance(d["sensing"]["estimator0"]["kalman"], KalmanEstimator)
     sim = Simulator(d, probes={"hat": "sensing.theta_hat", "true": "group.theta"})
     trace = sim.run(duration=10.0)  # Table 2's duration of group 1
@@ -28,4 +28,4 @@ def test_position_domain_with_kalman_front_end_tracks_group1():
 
 def test_front_end_is_validated():
     with pytest.raises(ValueError, match="front_end"):
-        pop_sync(1, domain="position", front_end="median")
+        pop_sync(1, domain="position", front_end="median", blender="deliverable")

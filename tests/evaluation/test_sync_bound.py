@@ -16,7 +16,7 @@ def test_resimulation_matches_the_closed_loop_diagram():
     """A constant-frequency reference through resimulate() gives the r of the same reference in pop_sync."""
     group = TABLE2[1]
     theta_ref = 4.0 * DT * np.arange(301)
-    trace = Simulator(pop_sync(group, motion="mean"), probes=["l2.theta_ref"]).run(n_steps=301)
+    trace = Simulator(pop_sync(group, motion="mean", blender="deliverable"), probes=["l2.theta_ref"]).run(n_steps=301)
     assert resimulate(group, theta_ref) != pytest.approx(float(trace["r"].mean()), abs=1e-6)  # a different reference
     mean_ref = trace["l2.theta_ref"]
     assert resimulate(group, mean_ref) == pytest.approx(float(trace["r"].mean()), abs=1e-12)
@@ -39,5 +39,9 @@ def test_bound_is_below_one_and_above_every_constant_reference(bounded):
 @pytest.mark.parametrize("motion", ["mean", "lookahead", "mpc", "pace"])
 def test_bound_is_above_the_policies(bounded, motion):
     group, bound = bounded
-    r = float(Simulator(pop_sync(group, motion=motion)).run(n_steps=round(DURATION / DT) + 1)["r"].mean())
+    r = float(
+        Simulator(pop_sync(group, motion=motion, blender="deliverable"))
+        .run(n_steps=round(DURATION / DT) + 1)["r"]
+        .mean()
+    )
     assert r <= bound, f"{motion}: {r} above the bound {bound}"

@@ -30,15 +30,15 @@ def same_run(a, b, n_steps, probes=None):
 
 @pytest.mark.parametrize("suffix", [".json", ".yaml"])
 def test_pop_sync_reloads_bit_identical(tmp_path, suffix):
-    path = save_diagram(pop_sync(3), tmp_path / f"sync{suffix}")
+    path = save_diagram(pop_sync(3, blender="deliverable"), tmp_path / f"sync{suffix}")
     loaded = load_diagram(path)
     assert type(loaded["l2"]).__name__ == "L2Sync" and isinstance(loaded["l2.motion"], RecedingPlanMotion)
-    trace = same_run(pop_sync(3), loaded, 1500, probes=["group.theta", "l2.lam"])
+    trace = same_run(pop_sync(3, blender="deliverable"), loaded, 1500, probes=["group.theta", "l2.lam"])
     assert trace["r"].std() > 0  # something happens in the run compared
 
 
 def test_the_file_is_plain_data(tmp_path):
-    path = save_diagram(pop_sync(3), tmp_path / "sync.json")
+    path = save_diagram(pop_sync(3, blender="deliverable"), tmp_path / "sync.json")
     data = json.loads(path.read_text())
     group = data["root"]["diagram"]["blocks"]["group"]
     assert group == {
@@ -74,9 +74,14 @@ def test_nested_diagrams_periods_and_exposed_ports(tmp_path):
 
 
 def test_position_domain_with_nested_sensing(tmp_path):
-    built = pop_sync(1, domain="position", seed=3)
+    built = pop_sync(1, domain="position", seed=3, blender="deliverable")
     loaded = load_diagram(save_diagram(built, tmp_path / "sync.json"))
-    trace = same_run(pop_sync(1, domain="position", seed=3), loaded, 300, probes=["sensing.theta_hat", "sensing.p"])
+    trace = same_run(
+        pop_sync(1, domain="position", seed=3, blender="deliverable"),
+        loaded,
+        300,
+        probes=["sensing.theta_hat", "sensing.p"],
+    )
     assert np.ptp(trace["sensing.p"]) > 100  # noisy arm positions, drawn from the seed
 
 
@@ -110,7 +115,7 @@ def python_error(build):
 
 
 def test_errors_are_those_of_python_and_name_the_file(tmp_path):
-    path = save_diagram(pop_sync(1), tmp_path / "sync.json")
+    path = save_diagram(pop_sync(1, blender="deliverable"), tmp_path / "sync.json")
     good = json.loads(path.read_text())
 
     def write(data):
@@ -138,7 +143,7 @@ def test_errors_are_those_of_python_and_name_the_file(tmp_path):
 
     bad = json.loads(json.dumps(good))
     bad["root"]["diagram"]["wires"].append(["order.r", "group.theta_l2"])  # already driven by l2.theta_l2
-    kind, message = python_error(lambda: pop_sync(1).connect("order.r", "group.theta_l2"))
+    kind, message = python_error(lambda: pop_sync(1, blender="deliverable").connect("order.r", "group.theta_l2"))
     with pytest.raises(kind) as info:
         load_diagram(write(bad))
     assert kind is DiagramError and str(info.value) == f"{path}: {message}"
@@ -162,9 +167,11 @@ class HoldPolicy:
 
 @pytest.mark.parametrize("motion", ["dqn_raw", "lookahead"])
 def test_l3_policies_are_stored(tmp_path, motion):
-    loaded = load_diagram(save_diagram(pop_sync(1, motion=motion), tmp_path / "sync.json"))
-    assert type(loaded["l2.motion"].policy) is type(pop_sync(1, motion=motion)["l2.motion"].policy)
-    trace = same_run(pop_sync(1, motion=motion), loaded, 150, probes=["l2.theta_ref"])
+    loaded = load_diagram(save_diagram(pop_sync(1, motion=motion, blender="deliverable"), tmp_path / "sync.json"))
+    assert type(loaded["l2.motion"].policy) is type(
+        pop_sync(1, motion=motion, blender="deliverable")["l2.motion"].policy
+    )
+    trace = same_run(pop_sync(1, motion=motion, blender="deliverable"), loaded, 150, probes=["l2.theta_ref"])
     assert np.ptp(trace["l2.theta_ref"]) > 1
 
 
@@ -193,14 +200,14 @@ def test_what_cannot_be_saved_is_refused_by_name():
     g = TABLE2[1]
     motion = MotionComputer(HoldPolicy(), n=g.n, assisted=g.assisted, gain=g.gain, omega_init=4.0)
     with pytest.raises(TypeError, match=r"l2: parameter 'motion': parameter 'policy': a HoldPolicy cannot"):
-        diagram_to_dict(pop_sync(1, motion=motion))
+        diagram_to_dict(pop_sync(1, motion=motion, blender="deliverable"))
     d = Diagram()
     d.add("double", Doubler(3.0))
     with pytest.raises(TypeError, match=r"double: Doubler is not in the block catalogue"):
         diagram_to_dict(d)
     data = diagram_to_dict(d, blocks={"Doubler": Doubler})
     assert diagram_from_dict(data, blocks={"Doubler": Doubler})["double"].factor == 3.0
-    changed = pop_sync(1)
+    changed = pop_sync(1, blender="deliverable")
     changed.replace("l2.motion", MeanPhaseMotion(5, 3))
     with pytest.raises(TypeError, match=r"l2: L2Sync was changed after construction"):
         diagram_to_dict(changed)

@@ -94,7 +94,9 @@ def _closed_loop(group: SyncGroup, block: GuardedPacingMotion, seconds: float, r
 
     block.update = counted
     probes = {"ref": "l2.theta_ref", "l0": "l2.theta_l0"}
-    return Simulator(pop_sync(group, motion=block), probes=probes).run(n_steps=round(seconds / 0.01) + 1)
+    return Simulator(pop_sync(group, motion=block, blender="deliverable"), probes=probes).run(
+        n_steps=round(seconds / 0.01) + 1
+    )
 
 
 def test_work_per_tick_is_bounded_and_a_decision_applies_one_period_after_it_starts():
@@ -357,13 +359,13 @@ def test_a_decision_with_a_checkpoint_continues_bit_for_bit_from_a_snapshot():
     def build() -> GuardedPacingMotion:
         return GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration, early=5.0)
 
-    sim = Simulator(pop_sync(group, motion=build()), probes={"ref": "l2.theta_ref"})
+    sim = Simulator(pop_sync(group, motion=build(), blender="deliverable"), probes={"ref": "l2.theta_ref"})
     sim.run(n_steps=123)
     job = sim.compiled.blocks["l2.motion"].job
     assert job.done_steps - job.lead_steps > job.checkpoint and not job.done and len(job.early)
     snapshot = sim.state_dict()
     first = sim.run(n_steps=300)
-    other = Simulator(pop_sync(group, motion=build()), probes={"ref": "l2.theta_ref"})
+    other = Simulator(pop_sync(group, motion=build(), blender="deliverable"), probes={"ref": "l2.theta_ref"})
     other.load_state_dict(snapshot)
     second = other.run(n_steps=300)
     np.testing.assert_array_equal(first["r"], second["r"])

@@ -71,7 +71,7 @@ def test_identifier_skips_bad_ticks_and_holds():
 
 
 def _r_mean(group, motion, n_steps):
-    return float(Simulator(pop_sync(group, motion=motion)).run(n_steps=n_steps)["r"].mean())
+    return float(Simulator(pop_sync(group, motion=motion, blender="deliverable")).run(n_steps=n_steps)["r"].mean())
 
 
 def test_mpc_raises_r_on_group_1():
@@ -97,7 +97,9 @@ def test_mpc_with_the_true_model_and_by_name():
 def test_mpc_reference_is_continuous_after_the_first_plan():
     group = TABLE2[1]
     mpc = MPCMotion(group.n, group.assisted)
-    ref = Simulator(pop_sync(group, motion=mpc), probes=["l2.theta_ref"]).run(n_steps=301)["l2.theta_ref"]
+    ref = Simulator(pop_sync(group, motion=mpc, blender="deliverable"), probes=["l2.theta_ref"]).run(n_steps=301)[
+        "l2.theta_ref"
+    ]
     jumps = np.abs(np.angle(np.exp(1j * np.diff(ref[10:]))))
     assert jumps.max() <= 0.01 * 15.0 + 1e-9  # |ω_ref| ≤ 15 rad/s
 
@@ -105,7 +107,7 @@ def test_mpc_reference_is_continuous_after_the_first_plan():
 def test_mpc_refuses_a_step_that_does_not_divide_the_period():
     group = TABLE2[1]
     with pytest.raises(Exception, match="must divide the period"):
-        Simulator(pop_sync(group, motion=MPCMotion(group.n, group.assisted, step=0.3)))
+        Simulator(pop_sync(group, motion=MPCMotion(group.n, group.assisted, step=0.3), blender="deliverable"))
     with pytest.raises(ValueError, match="together"):
         MPCMotion(3, 0, omega=[1.0, 2.0, 3.0])
 
@@ -135,7 +137,7 @@ class _CountingSolver:
 
 def _mpc_with_counter(group, probes=(), **options):
     mpc = MPCMotion(group.n, group.assisted, **options)
-    sim = Simulator(pop_sync(group, motion=mpc), probes=list(probes))
+    sim = Simulator(pop_sync(group, motion=mpc, blender="deliverable"), probes=list(probes))
     solver, screen = mpc._planner
     counter = _CountingSolver(solver, mpc)
     mpc._planner = (counter, screen)

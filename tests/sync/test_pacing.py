@@ -40,9 +40,9 @@ def brute_force(theta, lam, omega, gain, a, assisted, kind, value, anchor, step,
         seen = list(theta)
         seen[assisted] = l0 + shift
         total += abs(sum(complex(math.cos(x), math.sin(x)) for x in seen)) / n
-        lam_inf = max(0.0, 1.0 - abs(shift) / BLENDER.e_max) * (BLENDER.lambda_max - BLENDER.lambda_min)
-        lam_inf += BLENDER.lambda_min
-        lam -= step * (BLENDER.kappa_up if lam <= lam_inf else BLENDER.kappa_down) * (lam - lam_inf)
+        lam_inf = max(0.0, 1.0 - abs(shift) / BLENDER.e_max) * (BLENDER.lam_max - BLENDER.lam_min)
+        lam_inf += BLENDER.lam_min
+        lam -= step * (BLENDER.kappa_plus if lam <= lam_inf else BLENDER.kappa_minus) * (lam - lam_inf)
         theta = [
             theta[i] + step * (omega[i] + gain * sum(a[i][j] * math.sin(seen[j] - seen[i]) for j in range(n)))
             for i in range(n)
@@ -84,13 +84,13 @@ def test_the_choice_is_the_best_candidate_of_a_brute_force_simulation():
     omega, gain = np.array([2.0, 2.9, 3.6]), 0.4
     block = _compiled(PacingMotion(n, assisted, horizon=3.0, frequencies=5, margin=0.0, switch_margin=0.0))
     for _ in range(3):
-        theta, lam = rng.uniform(0, 2 * np.pi, n), rng.uniform(BLENDER.lambda_min, BLENDER.lambda_max)
+        theta, lam = rng.uniform(0, 2 * np.pi, n), rng.uniform(BLENDER.lam_min, BLENDER.lam_max)
         ref = float(theta[assisted])  # the block does nothing yet: θ_ref = θ_L0, θ̃ = θ
         best, (kinds, freqs, anchors), _ = block.plan(theta, theta.copy(), lam, ref, (omega, gain))
         # the first 10 ms step is shared, then every candidate runs 60 steps of 50 ms
         pull = np.array([sum(a[i, j] * math.sin(theta[j] - theta[i]) for j in range(n)) for i in range(n)])
         theta_next = theta + 0.01 * (omega + gain * pull)
-        lam_next = lam - 0.01 * BLENDER.kappa_up * (lam - BLENDER.lambda_max)
+        lam_next = lam - 0.01 * BLENDER.kappa_plus * (lam - BLENDER.lam_max)
         scores = [
             brute_force(theta_next, lam_next, omega, gain, a, assisted, *c, 0.05, 60)
             for c in zip(kinds, freqs, anchors, strict=True)
@@ -119,7 +119,9 @@ def test_nothing_is_done_when_no_candidate_is_predicted_clearly_better():
 
 def _closed_loop(group: SyncGroup, block: PacingMotion, seconds: float):
     probes = {"ref": "l2.theta_ref", "l0": "l2.theta_l0", "l2": "l2.theta_l2"}
-    return Simulator(pop_sync(group, motion=block), probes=probes).run(n_steps=round(seconds / 0.01) + 1)
+    return Simulator(pop_sync(group, motion=block, blender="deliverable"), probes=probes).run(
+        n_steps=round(seconds / 0.01) + 1
+    )
 
 
 def test_it_identifies_the_group_online_and_decides_every_period():

@@ -27,7 +27,7 @@ def _block() -> PlannedMotion:
 
 def _run(block: PlannedMotion, l2: bool = True) -> dict:
     probes = {"l0": "l2.theta_l0", "l2": "l2.theta_l2", "ref": "l2.theta_ref"} if l2 else {}
-    return Simulator(pop_sync(GROUP, l2=l2, motion=block), probes=probes).run(n_steps=N_TICKS)
+    return Simulator(pop_sync(GROUP, l2=l2, motion=block, blender="deliverable"), probes=probes).run(n_steps=N_TICKS)
 
 
 def _wrap(x: np.ndarray) -> np.ndarray:
@@ -57,9 +57,11 @@ def test_the_plan_raises_r_over_doing_nothing_and_over_the_mean_rule_from_the_sa
     assert with_l2.mean() > without.mean() + 0.02
     # independent of the plan: the mean rule held from the planned state on the true group
     a = GROUP.adjacency()
-    sim = Simulator(pop_sync(GROUP, motion=_block()), probes={"l0": "l2.theta_l0", "th": "group.theta"})
+    sim = Simulator(
+        pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"l0": "l2.theta_l0", "th": "group.theta"}
+    )
     theta = sim.run(n_steps=block.plan_start + 1)["th"][-1]
-    lam = BLENDER.lambda_max  # nothing altered before the plan: λ is still at its start
+    lam = BLENDER.lam_max  # nothing altered before the plan: λ is still at its start
     rules = (np.array([0, 1]), np.zeros(2), np.zeros(2))
     sums, _ = rule_rollouts(GROUP, a, BLENDER, np.r_[theta, lam], rules, len(block.plan), record=False)
     assert with_l2[block.plan_start :].sum() > sums.max()
@@ -73,11 +75,11 @@ def test_motions_plan_is_told_the_group_and_the_trial():
 
 
 def test_a_plan_continues_bit_for_bit_from_a_snapshot():
-    sim = Simulator(pop_sync(GROUP, motion=_block()), probes={"ref": "l2.theta_ref"})
+    sim = Simulator(pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"ref": "l2.theta_ref"})
     sim.run(n_steps=250)
     snapshot = sim.state_dict()
     first = sim.run(n_steps=200)
-    other = Simulator(pop_sync(GROUP, motion=_block()), probes={"ref": "l2.theta_ref"})
+    other = Simulator(pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"ref": "l2.theta_ref"})
     other.load_state_dict(snapshot)
     second = other.run(n_steps=200)
     np.testing.assert_array_equal(first["ref"], second["ref"])
@@ -102,7 +104,7 @@ def test_a_bad_tick_identifies_nothing_and_theta_ref_holds():
 def test_the_block_plans_only_on_the_10_ms_tick():
     block = PlannedMotion(GROUP.n, GROUP.assisted, adjacency=GROUP.graph, end=GROUP.duration, sweeps=())
     with pytest.raises(RuntimeError, match="0.01 s tick"):
-        Simulator(pop_sync(GROUP, motion=block), dt=0.02).run(n_steps=200)
+        Simulator(pop_sync(GROUP, motion=block, blender="deliverable"), dt=0.02).run(n_steps=200)
 
 
 @pytest.mark.parametrize(

@@ -13,6 +13,7 @@ from cogblocks.data.groups import random_groups
 from cogblocks.diagrams.sync import MOTIONS, pop_sync
 from cogblocks.sim import Diagram, Simulator
 from cogblocks.sync import RecedingPlanMotion
+from cogblocks.sync.blending import CONTINUOUS
 from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.whole_run import rule_rollouts
 
@@ -31,7 +32,9 @@ def _block(**options) -> RecedingPlanMotion:
 
 
 def _run(block: RecedingPlanMotion, l2: bool = True, n_steps: int = N_TICKS) -> dict:
-    return Simulator(pop_sync(GROUP, l2=l2, motion=block), probes=PROBES if l2 else {}).run(n_steps=n_steps)
+    return Simulator(pop_sync(GROUP, l2=l2, motion=block, blender="deliverable"), probes=PROBES if l2 else {}).run(
+        n_steps=n_steps
+    )
 
 
 def _wrap(x: np.ndarray) -> np.ndarray:
@@ -69,10 +72,12 @@ def test_the_plans_raise_r_over_doing_nothing_and_over_the_mean_rule_from_the_sa
     np.testing.assert_allclose(with_l2[:200], without[:200], rtol=0, atol=1e-12)
     assert with_l2.mean() > without.mean() + 0.02
     # independent of the plans: doing nothing and the mean rule from tick 200's state on the true group
-    theta = Simulator(pop_sync(GROUP, motion=_block()), probes={"th": "group.theta"}).run(n_steps=201)["th"][-1]
+    theta = Simulator(pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"th": "group.theta"}).run(
+        n_steps=201
+    )["th"][-1]
     rules = (np.array([0, 1]), np.zeros(2), np.zeros(2))
     sums, _ = rule_rollouts(
-        GROUP, GROUP.adjacency(), BLENDER, np.r_[theta, BLENDER.lambda_max], rules, N_TICKS - 200, record=False
+        GROUP, GROUP.adjacency(), BLENDER, np.r_[theta, BLENDER.lam_max], rules, N_TICKS - 200, record=False
     )
     assert with_l2[200:].sum() > sums.max()
 
@@ -85,13 +90,13 @@ def test_motions_replan_is_told_the_group_and_the_trial():
 
 
 def test_plans_continue_bit_for_bit_from_a_snapshot_taken_between_a_decision_and_its_plan(tmp_path):
-    sim = Simulator(pop_sync(GROUP, motion=_block()), probes={"ref": "l2.theta_ref"})
+    sim = Simulator(pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"ref": "l2.theta_ref"})
     sim.run(n_steps=250)  # the decision of tick 200 is pending until tick 300
     snapshot = sim.state_dict()
     sim.save_state(tmp_path / "snap.npz")  # and to a file, without pickle
     first = sim.run(n_steps=200)
     for load in (lambda other: other.load_state_dict(snapshot), lambda other: other.load_state(tmp_path / "snap.npz")):
-        other = Simulator(pop_sync(GROUP, motion=_block()), probes={"ref": "l2.theta_ref"})
+        other = Simulator(pop_sync(GROUP, motion=_block(), blender="deliverable"), probes={"ref": "l2.theta_ref"})
         load(other)
         assert other.compiled.blocks["l2.motion"].pending_start == 300
         second = other.run(n_steps=200)
@@ -105,7 +110,7 @@ def test_on_a_thread_in_real_time_the_plans_are_those_made_inline():
     inline = _block()
     expected = _run(inline)["r"]
     threaded = _block(worker="thread")
-    d = pop_sync(GROUP, motion=threaded)
+    d = pop_sync(GROUP, motion=threaded, blender="deliverable")
     d.expose_output("r", "order.r")
     report = run_realtime(d.compile(0.01), N_TICKS / 100.0, record=True)
     threaded.close()
@@ -129,7 +134,7 @@ class _HeldDecision(RecedingPlanMotion):
 def test_a_late_decision_is_counted_and_dropped_while_the_plan_in_force_goes_on():
     release = threading.Event()
     block = _HeldDecision(release, worker="thread", **OPTIONS)
-    sim = Simulator(pop_sync(GROUP, motion=block), probes=PROBES)
+    sim = Simulator(pop_sync(GROUP, motion=block, blender="deliverable"), probes=PROBES)
     first = sim.run(n_steps=350)
     assert block.late == 1 and block.plans == []  # the decision of tick 100 was due at tick 200
     np.testing.assert_array_equal(_wrap(first["l2"] - first["l0"]), 0.0)  # no plan: nothing altered
@@ -166,7 +171,7 @@ def test_a_bad_tick_identifies_nothing_and_theta_ref_holds():
 def test_the_block_plans_only_on_the_10_ms_tick():
     block = _block(sweeps=())
     with pytest.raises(RuntimeError, match="0.01 s tick"):
-        Simulator(pop_sync(GROUP, motion=block), dt=0.02).run(n_steps=200)
+        Simulator(pop_sync(GROUP, motion=block, blender="deliverable"), dt=0.02).run(n_steps=200)
 
 
 @pytest.mark.parametrize(
@@ -201,7 +206,10 @@ def test_past_the_plan_in_force_a_decision_expects_the_best_rule_not_nothing():
     runs = {}
     for extend in ("rule", "nothing"):
         block = _block(horizon=1.0, sweeps=(), extend=extend)
-        runs[extend] = (block, Simulator(pop_sync(GROUP, motion=block), probes=probes).run(n_steps=N_TICKS))
+        runs[extend] = (
+            block,
+            Simulator(pop_sync(GROUP, motion=block, blender="deliverable"), probes=probes).run(n_steps=N_TICKS),
+        )
     block, trace = runs["rule"]
     others = np.delete(trace["theta"], GROUP.assisted, axis=1)
     mean = np.angle(np.exp(1j * others).sum(axis=1))
@@ -228,3 +236,15 @@ def test_with_no_horizon_every_plan_reaches_the_trials_end():
     ]
     with pytest.raises(ValueError, match="horizon=None plans to the trial's end, which needs end"):
         RecedingPlanMotion(3, 0, end=None, horizon=None)
+
+
+def test_through_the_continuous_blender_the_plan_is_what_the_avatar_does_and_never_jumps():
+    block = _block()
+    trace = Simulator(pop_sync(GROUP, motion=block, blender="continuous"), probes=PROBES).run(n_steps=N_TICKS)
+    assert block.blender == CONTINUOUS and [start for start, _, _ in block.plans][0] == 200
+    alteration, predicted = _planned(block, N_TICKS)
+    seen = _wrap(trace["l2"] - trace["l0"])
+    # the plans are made through the slew limit: the blender passes them unchanged, and the model predicts r
+    np.testing.assert_allclose(seen, alteration, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(predicted[200:], trace["r"][200:], rtol=0, atol=1e-4)
+    assert np.abs(np.diff(seen)).max() <= CONTINUOUS.slew * 0.01 + 1e-9

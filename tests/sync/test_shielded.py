@@ -141,7 +141,9 @@ def test_margin_choice_never_leaves_doing_nothing_for_a_candidate_predicted_belo
 def _recorded(group: SyncGroup, seconds: float) -> tuple[np.ndarray, np.ndarray]:
     """Phases and λ of a closed loop under the circular mean, to feed a motion computer open loop."""
     probes = {"theta": "group.theta", "lam": "l2.blender.lam"}
-    trace = Simulator(pop_sync(group, motion="mean"), probes=probes).run(n_steps=round(seconds / 0.01))
+    trace = Simulator(pop_sync(group, motion="mean", blender="deliverable"), probes=probes).run(
+        n_steps=round(seconds / 0.01)
+    )
     return trace["theta"], trace["lam"]
 
 
@@ -187,7 +189,7 @@ def test_it_never_alters_the_participant_before_its_model_is_trusted_and_leaves_
     """With a margin no prediction can reach, the shielded DQN is doing nothing: r is exactly r without L2."""
     group = TABLE2[1]
     block = ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, margin=1.0)
-    with_shield = Simulator(pop_sync(group, motion=block)).run(n_steps=501)["r"]
+    with_shield = Simulator(pop_sync(group, motion=block, blender="deliverable")).run(n_steps=501)["r"]
     without = Simulator(pop_sync(group, l2=False)).run(n_steps=501)["r"]
     np.testing.assert_allclose(with_shield, without, rtol=0, atol=1e-12)
     assert len(block.predictions) == 4 and set(block.choices) == {NONE}  # decisions at 200, 300, 400, 500

@@ -43,7 +43,7 @@ def _in_progress(name: str, ticks: int, motion) -> None:
 def test_a_closed_loop_continues_bit_for_bit_from_a_snapshot(tmp_path, name, ticks, via, fresh):
     """Saved mid-decision (``save_state`` or ``state_dict``), continued 300 ticks; a second simulator, of the same
     diagram or of a new one built alike, loads the snapshot and runs the same 300 ticks, to the bit."""
-    diagram = pop_sync(2, motion=name)
+    diagram = pop_sync(2, motion=name, blender="deliverable")
     sim = Simulator(diagram, probes=PROBES)
     sim.run(n_steps=ticks)
     _in_progress(name, ticks, sim.compiled.blocks["l2.motion"])
@@ -53,7 +53,7 @@ def test_a_closed_loop_continues_bit_for_bit_from_a_snapshot(tmp_path, name, tic
     else:
         snapshot = sim.state_dict()
     first = sim.run(n_steps=300)
-    other = Simulator(pop_sync(2, motion=name) if fresh else diagram, probes=PROBES)
+    other = Simulator(pop_sync(2, motion=name, blender="deliverable") if fresh else diagram, probes=PROBES)
     other.run(n_steps=7)  # a plan with a state of its own, which the snapshot replaces
     _load(other, snapshot)
     _assert_same_run(first, other.run(n_steps=300))
@@ -62,13 +62,13 @@ def test_a_closed_loop_continues_bit_for_bit_from_a_snapshot(tmp_path, name, tic
 
 @pytest.mark.parametrize("name", ["guard", "dqn"])
 def test_a_reset_drops_the_decision_in_progress(name):
-    sim = Simulator(pop_sync(2, motion=name), probes=PROBES)
+    sim = Simulator(pop_sync(2, motion=name, blender="deliverable"), probes=PROBES)
     sim.run(n_steps=123)
     sim.reset()
     motion = sim.compiled.blocks["l2.motion"]
     assert motion.job is None and not motion.job_active
     again = sim.run(n_steps=423)
-    _assert_same_run(again, Simulator(pop_sync(2, motion=name), probes=PROBES).run(n_steps=423))
+    _assert_same_run(again, Simulator(pop_sync(2, motion=name, blender="deliverable"), probes=PROBES).run(n_steps=423))
 
 
 def test_mpc_continues_bit_for_bit_from_a_snapshot_taken_mid_solve(tmp_path):
@@ -79,7 +79,7 @@ def test_mpc_continues_bit_for_bit_from_a_snapshot_taken_mid_solve(tmp_path):
     def motion() -> MPCMotion:
         return MPCMotion(group.n, group.assisted, adjacency=group.adjacency(), time_limit_ms=1e4)
 
-    sim = Simulator(pop_sync(group, motion=motion()), probes=PROBES)
+    sim = Simulator(pop_sync(group, motion=motion(), blender="deliverable"), probes=PROBES)
     sim.run(n_steps=152)  # the decision of tick 150 is being refined, one chunk of IPOPT a tick
     block = sim.compiled.blocks["l2.motion"]
     assert block.solving and 0 < block.solve_iterations < block.max_iter
@@ -87,6 +87,6 @@ def test_mpc_continues_bit_for_bit_from_a_snapshot_taken_mid_solve(tmp_path):
     snapshot = sim.state_dict()
     first = sim.run(n_steps=300)
     for loaded in (tmp_path / "snap.npz", snapshot):
-        other = Simulator(pop_sync(group, motion=motion()), probes=PROBES)
+        other = Simulator(pop_sync(group, motion=motion(), blender="deliverable"), probes=PROBES)
         _load(other, loaded)
         _assert_same_run(first, other.run(n_steps=300))

@@ -92,7 +92,7 @@ def test_constant_frequency_scan_matches_the_model():
     best = 0.0
     for w in np.linspace(omega.min() - 0.5, omega.max() + 0.5, 3):
         for phase0 in (0.0, np.pi):
-            theta, lam, total = np.zeros(group.n), np.asarray(model.blender.lambda_max), 0.0
+            theta, lam, total = np.zeros(group.n), np.asarray(model.blender.lam_max), 0.0
             for k in range(151):
                 ref = np.mod(phase0 + w * k * 0.01, 2 * np.pi)
                 tilde, _, lam = model.blend(theta, np.asarray(ref), lam)

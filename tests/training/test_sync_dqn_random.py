@@ -13,7 +13,8 @@ import torch
 
 import cogblocks.training.sync_dqn_random as randomised
 from cogblocks.data.groups import TABLE2, random_groups
-from cogblocks.diagrams.sync import _l3_motion, pop_sync
+from cogblocks.diagrams.sync import pop_sync
+from cogblocks.diagrams.sync_motions import _l3_motion
 from cogblocks.sim import Simulator
 from cogblocks.sync.dqn_policy import FEATURE_SIZE, OBS_SIZE, DQNPolicy, L3QNetwork, group_features
 from cogblocks.sync.motion import HOLD_ACTION, L3Context
@@ -94,7 +95,9 @@ def test_batched_validation_equals_the_policy_in_the_env_and_in_the_diagram() ->
     np.testing.assert_allclose(batched, one_by_one, rtol=0, atol=1e-12)
     # The diagram's MotionComputer gives the policy the same features (it passes the assisted index).
     group = groups[0]
-    r = Simulator(pop_sync(group, motion=_l3_motion(group, DQNPolicy(network)))).run(n_steps=201)["r"]
+    r = Simulator(pop_sync(group, motion=_l3_motion(group, DQNPolicy(network)), blender="deliverable")).run(
+        n_steps=201
+    )["r"]
     r_without = order_parameter_without_l2(group)
     assert 100 * (float(r.mean()) - r_without) / r_without == pytest.approx(batched[0], abs=1e-7)
 

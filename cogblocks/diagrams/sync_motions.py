@@ -1,0 +1,109 @@
+"""The motion computers the ready diagrams know by name: each entry of :data:`MOTIONS` builds a fresh block for a
+group (the names ``pop_sync``, ``run_sync``, the held-out evaluation and ``--policy`` take)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from cogblocks.data.groups import SyncGroup
+from cogblocks.sim import Block
+from cogblocks.sync import MeanPhaseMotion, OscillatorMotion
+
+__all__ = ["DEFAULT_MOTION", "DEFAULT_MOTIONS", "MOTIONS"]
+
+
+def _mean_motion(group: SyncGroup) -> Block:
+    return MeanPhaseMotion(group.n, group.assisted)
+
+
+def _l3_motion(group: SyncGroup, policy: Any) -> Block:
+    return OscillatorMotion(
+        policy,
+        n=group.n,
+        assisted=group.assisted,
+        gain=group.gain,
+        omega_init=float(np.mean(group.omega)),
+        adjacency=group.graph,
+    )
+
+
+def _dqn_raw_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import DQNPolicy
+
+    return _l3_motion(group, DQNPolicy.default())
+
+
+def _dqn_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import ShieldedMotion
+
+    return ShieldedMotion(_dqn_raw_motion(group), adjacency=group.graph)
+
+
+def _lookahead_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import LookaheadPolicy
+
+    return _l3_motion(group, LookaheadPolicy.for_group(group))
+
+
+def _mpc_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import MPCMotion
+
+    return MPCMotion(group.n, group.assisted, adjacency=group.adjacency())
+
+
+def _pace_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import PacingMotion
+
+    return PacingMotion(group.n, group.assisted, adjacency=group.graph)
+
+
+def _plan_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import PlannedMotion
+
+    return PlannedMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+
+
+def _replan_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import RecedingPlanMotion
+
+    # a simulated trial has an end, and every plan reaches it (live_motion plans 30 s ahead, with no end)
+    return RecedingPlanMotion(
+        group.n, group.assisted, adjacency=group.graph, end=group.duration, horizon=None, compare=None
+    )
+
+
+def _guard_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import GuardedPacingMotion
+
+    # the trial's length is part of the task (mean r over [0, T]), not a model of the group: predictions run to it
+    return GuardedPacingMotion.for_trial(group.n, group.assisted, adjacency=group.graph, end=group.duration)
+
+
+#: Motion computers available by name: each builds a fresh block for a group. ``dqn_raw`` is the trained L3 policy
+#: (``python -m cogblocks.training.sync_dqn --randomised --seed 0``), ``dqn`` the same behind a shield (followed only
+#: while a prediction on the group identified online says it does not lower r); ``lookahead`` plans 25 ticks ahead on
+#: the true model; ``mean`` follows the others' circular mean; ``mpc``, ``pace``, ``guard`` and ``replan`` plan on a
+#: model they identify online (``replan`` re-plans to the trial's end every second with the bound's search); ``plan``
+#: plans the whole trial at once with it (offline: seconds of CPU in one tick). Add an entry to make a policy available
+#: to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
+MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
+    "dqn": _dqn_motion,
+    "dqn_raw": _dqn_raw_motion,
+    "guard": _guard_motion,
+    "lookahead": _lookahead_motion,
+    "mean": _mean_motion,
+    "mpc": _mpc_motion,
+    "pace": _pace_motion,
+    "plan": _plan_motion,
+    "replan": _replan_motion,
+}
+
+#: The motion computer :func:`pop_sync` uses when none is given (docs/pop-sync.md, "Default", says why).
+DEFAULT_MOTION = "replan"
+
+#: What ``run_sync`` and ``cogblocks run sync --group N`` run without a policy list: the Table 3
+#: comparison as first published here (``mpc`` is slower and runs when asked for by name).
+DEFAULT_MOTIONS = ("dqn", "lookahead", "mean")
