@@ -37,6 +37,7 @@ from cogblocks.diagrams.amplification_setup import (
     optimised_subspace,
 )
 from cogblocks.diagrams.amplification_setup import blender_networks as shipped_blender_networks
+from cogblocks.diagrams.naturalness import movement_naturalness
 from cogblocks.diagrams.tracking import SMOOTHING_HZ, add_kalman_front_end, checked_cutoff
 from cogblocks.sim import Block, Diagram, Simulator, Trace
 from cogblocks.sim.params import finite_number, one_of
@@ -148,15 +149,8 @@ def pop_amplification(
     d.connect(l2.p_a, altered.p)
     d.connect(altered.velocity, classifier.velocity)
     d.connect(altered.count, classifier.count)
-    for name, source in (
-        ("v_h", human_v.y),
-        ("p_h", human_p.y),
-        ("v_a", l2.v_a),
-        ("p_a", l2.p_a),
-        ("v_r", l2.v_r),
-        ("c", l2.c),
-        ("eps", classifier.eps),
-    ):
+    probed = (("v_h", human_v.y), ("p_h", human_p.y), ("v_a", l2.v_a), ("p_a", l2.p_a), ("v_r", l2.v_r))
+    for name, source in (*probed, ("c", l2.c), ("eps", classifier.eps)):
         d.add(name, Probe())
         d.connect(source, f"{name}.u")
     return d
@@ -251,7 +245,8 @@ def run_amplification(
         that kept the previous plan or the table's blend) and ``decisions`` (decisions that ran the
         solver). Judged independently: ``judges`` (share each judge decides
         as ``e_des``), ``encoded_independent`` (the ensemble judge's share) and ``judges_agreement``
-        (share of movements on which the two judges agree whether ``e_des`` is encoded).
+        (share of movements on which the two judges agree whether ``e_des`` is encoded). ``naturalness``: the
+        altered velocity against the human's (:func:`~cogblocks.diagrams.naturalness.movement_naturalness`).
     """
     if setup is None:
         if seed is not None and judges is None:
@@ -305,6 +300,9 @@ def run_amplification(
             "final_distance_mm": float(distances_mm.mean()) if distances else float("nan"),
             "n": len(humans),
             **_judged(judges, altered, e_des),
+            "naturalness": movement_naturalness(altered, setup.library.velocity[humans], setup.library.dt)
+            if altered
+            else {},
         }
         if variant == "optimised":
             p50, p99 = np.percentile(tick_ms, [50, 99]) if tick_ms else (float("nan"), float("nan"))
