@@ -156,8 +156,8 @@ def movement_naturalness(altered: Sequence[Any], human: Sequence[Any], dt: float
         change of the velocity vector), ``peak_accel_ratio`` (peak |acceleration|; with accelerations as the
         velocity's differences over ``dt`` it equals the step ratio) and ``rms_jerk_ratio``; each summarised over
         the movements as ``{"median", "max"}``. Also ``steps_within_share`` (share of movements whose altered
-        largest step is at most the human's, to 1e-9 of it) and the medians of the raw figures, ``altered_step_mm_s`` and
-        ``human_step_mm_s``.
+        largest step is at most the human's, to 1e-9 of it) and the medians of the raw figures,
+        ``altered_step_mm_s`` and ``human_step_mm_s``.
     """
     if len(altered) != len(human) or not altered:
         raise ValueError(
