@@ -52,6 +52,7 @@ def _run_demo(args: argparse.Namespace) -> int:
 
 
 def _run_sync(args: argparse.Namespace) -> int:
+    from cogblocks.diagrams.naturalness import naturalness_text
     from cogblocks.diagrams.sync import DEFAULT_MOTION, DEFAULT_MOTIONS, MOTIONS, plot_sync, sync_table
     from cogblocks.experiments.sync import sync_trace
 
@@ -77,7 +78,8 @@ def _run_sync(args: argparse.Namespace) -> int:
                 result["results"].append(row)
                 line = (
                     f"  with L2, {row['policy']:>10}: {row['r_with']:.4f} ({row['change_pct']:+.2f} %), "
-                    f"|θ_L2 − θ_L0| mean {row['mean_dev_rad']:.3f} rad, max {row['max_dev_rad']:.3f} rad"
+                    f"|θ_L2 − θ_L0| mean {row['mean_dev_rad']:.3f} rad, max {row['max_dev_rad']:.3f} rad; "
+                    + naturalness_text(row)
                 )
             if not args.json:  # text streams, one line per figure as soon as it is known
                 print(line, flush=True)
@@ -133,14 +135,15 @@ def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
         lines = [
             f"{r['n_groups']} {held}random groups ({args.split} split, seed {r['seed']}): change of the mean order "
             f"parameter with L2 (pop_sync's default policy: {DEFAULT_MOTION})",
-            f"  {'policy':>10}  lowered  mean %   p5 %  worst %  of bound  |θ_L2 − θ_L0| mean / max rad",
+            f"  {'policy':>10}  lowered  mean %   p5 %  worst %  of bound |θ_L2 − θ_L0| rad  max step  jumps/min speed",
         ]
         for row in r["policies"]:
             bound = "–" if row["mean_bound_fraction"] is None else f"{row['mean_bound_fraction']:.2f}"
             lines.append(
                 f"  {row['policy']:>10}  {100 * row['lowered_share']:5.1f} %  {row['mean_change_pct']:+6.2f} "
                 f"{row['p5_change_pct']:+6.2f}  {row['worst_change_pct']:+7.2f}  {bound:>8}  "
-                f"{row['mean_dev_rad']:.3f} / {row['max_dev_rad']:.3f}"
+                f"{row['mean_dev_rad']:.3f} / {row['max_dev_rad']:.3f}    {row['max_step_rad']:.3f} rad  "
+                f"{row['mean_jumps_per_min']:9.1f}  {row['max_peak_speed_ratio']:4.1f}x"
             )
         return "\n".join(lines)
 

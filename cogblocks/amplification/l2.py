@@ -9,6 +9,7 @@ from cogblocks.amplification.buffer import Buffer
 from cogblocks.amplification.corrector import NoCorrection
 from cogblocks.amplification.position import VelocityPositionComputer
 from cogblocks.amplification.projector import LibraryProjector
+from cogblocks.amplification.smoothing import VelocityStepLimiter
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim import Block, Diagram
@@ -55,6 +56,10 @@ class L2Amplification(Diagram):
         ΔT, samples between two decisions (at most ``capacity``).
     capacity : int
         Samples kept by the buffer.
+    step_limit : float, optional
+        Put a :class:`~cogblocks.amplification.smoothing.VelocityStepLimiter` (``limiter``) after the blending
+        rule, its ``factor`` this value: the altered velocity's per-tick step stays within ``step_limit`` × the
+        human's largest step so far. ``None`` (default): the rule's velocity as it is.
     candidates : array_like of bool, optional
         Library movements the projector may choose, as in
         :class:`~cogblocks.amplification.LibraryProjector`.
@@ -77,6 +82,7 @@ class L2Amplification(Diagram):
         interval: int = 10,
         capacity: int = 200,
         candidates: Any = None,
+        step_limit: float | None = None,
     ) -> None:
         super().__init__()
         if not isinstance(library, ReachLibrary):
@@ -118,11 +124,17 @@ class L2Amplification(Diagram):
             self.connect(f"projector.{port}", f"blender.{port}")
         self.connect(projector.horizon, fix.horizon)
         self.connect(fix.v_u, blender.v_u)
-        self.connect(blender.v_a, position.v, fix.v_a)
+        altered, human = blender.v_a, [buffer.v, blender.v_h, fix.v_h]
+        if step_limit is not None:  # between the rule and everything that reads the altered velocity
+            limiter = self.add("limiter", VelocityStepLimiter(step_limit))
+            self.connect(blender.v_a, limiter.v)
+            altered = limiter.v_a
+            human.append(limiter.v_h)
+        self.connect(altered, position.v, fix.v_a)
         self.connect(position.p, fix.p_a)
-        self.expose_input("v_h", buffer.v, blender.v_h, fix.v_h)
+        self.expose_input("v_h", *human)
         self.expose_input("p_h", buffer.p, position.p_start, fix.p_h)
-        self.expose_output("v_a", blender.v_a)
+        self.expose_output("v_a", altered)
         self.expose_output("p_a", position.p)
         self.expose_output("c", blender.c)
         self.expose_output("v_r", projector.v_r)

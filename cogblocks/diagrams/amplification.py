@@ -34,9 +34,11 @@ from cogblocks.diagrams.amplification_setup import (
     AmplificationSetup,
     amplification_judges,
     amplification_setup,
+    judged_shares,
     optimised_subspace,
 )
 from cogblocks.diagrams.amplification_setup import blender_networks as shipped_blender_networks
+from cogblocks.diagrams.naturalness import movement_naturalness
 from cogblocks.diagrams.tracking import SMOOTHING_HZ, add_kalman_front_end, checked_cutoff
 from cogblocks.sim import Block, Diagram, Simulator, Trace
 from cogblocks.sim.params import finite_number, one_of
@@ -75,6 +77,7 @@ def pop_amplification(
     noise_mm: float = 0.0,
     seed: int = 0,
     smoothing_hz: float | str | None = SMOOTHING_HZ,
+    step_limit: float | None = None,
 ) -> Diagram:
     """A ready diagram replaying one human movement through the L2 architecture.
 
@@ -112,6 +115,9 @@ def pop_amplification(
         followed by a :class:`~cogblocks.sensing.RestGate` (block ``still``) set at the speed a still hand's
         estimate shows at ``noise_mm``, so that the tracker's noise is not emitted and the hand is seen to stop
         (:mod:`cogblocks.diagrams.tracking`); ``None``: the estimate as it is.
+    step_limit : float, optional
+        Limit the altered velocity's per-tick step to this multiple of the human's largest so far
+        (:class:`~cogblocks.amplification.smoothing.VelocityStepLimiter`, block ``l2.limiter``); None: no limit.
     """
     one_of("pop_amplification", "front_end", front_end, ("recorded", "kalman"))
     noise_mm = finite_number("pop_amplification", "noise_mm", noise_mm, low=0.0)
@@ -131,10 +137,10 @@ def pop_amplification(
     d = Diagram()
     human_v = d.add("human_v", Playback(velocity, unit="mm/s", at_end="zero"))
     human_p = d.add("human_p", Playback(position, unit="mm", at_end="hold"))
-    l2 = d.add(
-        "l2",
-        L2Amplification(library, table, corrector=corrector, blending=blending, e_des=e_des, capacity=library.max_len),
-    )
+    l2 = d.add("l2", L2Amplification(
+        library, table, corrector=corrector, blending=blending, e_des=e_des, capacity=library.max_len,
+        step_limit=step_limit,
+    ))  # fmt: skip
     altered = d.add("altered", Buffer(library.max_len))
     classifier = d.add("encoder", EncoderClassifier(encoder))
     if front_end == "kalman":
@@ -148,15 +154,8 @@ def pop_amplification(
     d.connect(l2.p_a, altered.p)
     d.connect(altered.velocity, classifier.velocity)
     d.connect(altered.count, classifier.count)
-    for name, source in (
-        ("v_h", human_v.y),
-        ("p_h", human_p.y),
-        ("v_a", l2.v_a),
-        ("p_a", l2.p_a),
-        ("v_r", l2.v_r),
-        ("c", l2.c),
-        ("eps", classifier.eps),
-    ):
+    probed = (("v_h", human_v.y), ("p_h", human_p.y), ("v_a", l2.v_a), ("p_a", l2.p_a), ("v_r", l2.v_r))
+    for name, source in (*probed, ("c", l2.c), ("eps", classifier.eps)):
         d.add(name, Probe())
         d.connect(source, f"{name}.u")
     return d
@@ -199,6 +198,7 @@ def run_amplification(
     front_end: str = "recorded",
     noise_mm: float = 0.0,
     smoothing_hz: float | str | None = SMOOTHING_HZ,
+    step_limit: float | None = None,
     setup: AmplificationSetup | None = None,
     judges: Judges | None = None,
     blender_networks: Sequence[EncoderNet] | None = None,
@@ -224,7 +224,7 @@ def run_amplification(
         Replay only the first ``limit`` movements (smoke tests).
     e_des : {0, 1}
         1: make no-fear movements encode fear; 0: remove fear from fear movements.
-    front_end, noise_mm, smoothing_hz : see :func:`pop_amplification` (movement ``i`` uses noise seed ``i``).
+    front_end, noise_mm, smoothing_hz, step_limit : see :func:`pop_amplification` (movement ``i``: noise seed ``i``).
     setup : AmplificationSetup, optional
         Another library, split, encoder and w̃ (:func:`cogblocks.training.pipeline.run_pipeline`);
         then ``judges`` and ``blender_networks`` must be given too.
@@ -251,7 +251,8 @@ def run_amplification(
         that kept the previous plan or the table's blend) and ``decisions`` (decisions that ran the
         solver). Judged independently: ``judges`` (share each judge decides
         as ``e_des``), ``encoded_independent`` (the ensemble judge's share) and ``judges_agreement``
-        (share of movements on which the two judges agree whether ``e_des`` is encoded).
+        (share of movements on which the two judges agree whether ``e_des`` is encoded). ``naturalness``: the
+        altered velocity against the human's (:func:`~cogblocks.diagrams.naturalness.movement_naturalness`).
     """
     if setup is None:
         if seed is not None and judges is None:
@@ -289,6 +290,7 @@ def run_amplification(
                 noise_mm=noise_mm,
                 seed=int(index),
                 smoothing_hz=smoothing_hz,
+                step_limit=step_limit,
             )
             trace = Simulator(d, probes={"decision": "encoder.decision"}).run(n_steps=n_steps)
             encoded.append(int(trace["decision"][-1]) == e_des)
@@ -304,7 +306,10 @@ def run_amplification(
             "terminal_ok": float(np.mean(distances_mm <= DELTA_POS_MM)) if distances else float("nan"),
             "final_distance_mm": float(distances_mm.mean()) if distances else float("nan"),
             "n": len(humans),
-            **_judged(judges, altered, e_des),
+            **judged_shares(judges, altered, e_des),
+            "naturalness": movement_naturalness(altered, setup.library.velocity[humans], setup.library.dt)
+            if altered
+            else {},
         }
         if variant == "optimised":
             p50, p99 = np.percentile(tick_ms, [50, 99]) if tick_ms else (float("nan"), float("nan"))
@@ -314,17 +319,6 @@ def run_amplification(
                 decision_ms_p50=float(d50), decision_ms_p99=float(d99), solve_ticks=len(tick_ms),
             )  # fmt: skip
     return results
-
-
-def _judged(judges: Judges, altered: list[np.ndarray], e_des: int) -> dict[str, Any]:
-    if not altered:
-        return {"judges": {}, "encoded_independent": float("nan"), "judges_agreement": float("nan")}
-    verdicts = {name: d == e_des for name, d in judges.decide(np.stack(altered)).items()}
-    return {
-        "judges": {name: float(v.mean()) for name, v in verdicts.items()},
-        "encoded_independent": float(verdicts["ensemble"].mean()),
-        "judges_agreement": float(np.mean(verdicts["ensemble"] == verdicts["kinematic"])),
-    }
 
 
 def _optimal_blender(

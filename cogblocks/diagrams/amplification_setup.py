@@ -8,6 +8,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +36,7 @@ __all__ = [
     "amplification_setup",
     "blender_ensembles",
     "blender_networks",
+    "judged_shares",
     "optimised_subspace",
 ]
 
@@ -199,3 +201,16 @@ def amplification_judges() -> Judges:
     train = setup.movements
     kinematic = KinematicJudge(setup.library.dt).fit(train.velocity, train.fear)
     return Judges(EncoderEnsemble(load_ensemble(JUDGE_ENSEMBLE)), kinematic)
+
+
+def judged_shares(judges: Judges, altered: list[np.ndarray], e_des: int) -> dict[str, Any]:
+    """The independent judges on the altered movements: ``judges`` (share each decides as ``e_des``),
+    ``encoded_independent`` (the ensemble judge's share) and ``judges_agreement`` (share on which they agree)."""
+    if not altered:
+        return {"judges": {}, "encoded_independent": float("nan"), "judges_agreement": float("nan")}
+    verdicts = {name: d == e_des for name, d in judges.decide(np.stack(altered)).items()}
+    return {
+        "judges": {name: float(v.mean()) for name, v in verdicts.items()},
+        "encoded_independent": float(verdicts["ensemble"].mean()),
+        "judges_agreement": float(np.mean(verdicts["ensemble"] == verdicts["kinematic"])),
+    }

@@ -13,6 +13,7 @@ import numpy as np
 from cogblocks.blocks import Demux, Mux, Probe, Substitute
 from cogblocks.blocks.angles import wrap_pi
 from cogblocks.data.groups import TABLE2, SyncGroup
+from cogblocks.diagrams.naturalness import sync_naturalness
 from cogblocks.diagrams.sync_motions import DEFAULT_MOTION, DEFAULT_MOTIONS, MOTIONS
 from cogblocks.phase import PhaseEstimator
 from cogblocks.sim import BASE_STEP, Block, Diagram, Simulator, Trace
@@ -148,10 +149,6 @@ def pop_sync(
     return d
 
 
-def _deviation(trace: Any) -> np.ndarray:
-    return np.abs(wrap_pi(trace["theta_l2"] - trace["theta_l0"]))
-
-
 def simulate(
     diagram: Diagram, n_steps: int, probes: dict[str, str] | None = None, *, label: str, progress: bool | None = None
 ) -> Trace:
@@ -203,7 +200,9 @@ def sync_table(
     """Table 3 for one group, one figure as soon as it is computed (see :func:`run_sync`).
 
     Yields first ``{"group", "domain", "r_without"}``, then one row ``{"policy", "r_with",
-    "change_pct", "mean_dev_rad", "max_dev_rad"}`` per motion computer. Progress bars are named
+    "change_pct", "mean_dev_rad", "max_dev_rad", "max_step_rad", "jumps_per_min", "peak_speed_ratio"}``
+    per motion computer (the position domain adds ``position_peak_speed_ratio`` and
+    ``position_rms_jerk_ratio``; see :mod:`cogblocks.diagrams.naturalness`). Progress bars are named
     after the group and the run (``progress`` as in :func:`simulate`); ``blender`` as in :func:`pop_sync`.
     """
     params, motions = _checked(group, motions, duration)
@@ -213,18 +212,19 @@ def sync_table(
     r_without = float(without["r"].mean())
     yield {"group": number, "domain": domain, "r_without": r_without}
     for name in motions:
-        probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0"}
+        probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0", "theta": "group.theta"}
         diagram = pop_sync(params, l2=True, motion=name, blender=blender, domain=domain, seed=seed)
         label = f"group {number}, L2 with {name if isinstance(name, str) else type(name).__name__}"
         trace = simulate(diagram, n_steps, probes, label=label, progress=progress)
         r_with = float(trace["r"].mean())
-        dev = _deviation(trace)
+        dev = np.abs(wrap_pi(trace["theta_l2"] - trace["theta_l0"]))
         yield {
             "policy": name,
             "r_with": r_with,
             "change_pct": 100.0 * (r_with - r_without) / r_without,
             "mean_dev_rad": float(dev.mean()),
             "max_dev_rad": float(dev.max()),
+            **sync_naturalness(trace, params.assisted if domain == "position" else None),
         }
 
 
@@ -251,8 +251,8 @@ def run_sync(
     -------
     dict
         ``{"group", "domain", "r_without", "results": [{"policy", "r_with", "change_pct",
-        "mean_dev_rad", "max_dev_rad"}, ...]}``; the deviations are
-        ``|wrap(θ_L2 − θ_L0)|`` over the run.
+        "mean_dev_rad", "max_dev_rad", ...naturalness}, ...]}``; the deviations are
+        ``|wrap(θ_L2 − θ_L0)|`` over the run, the naturalness keys as in :func:`sync_table`.
     """
     head, *rows = sync_table(group, motions, domain, duration=duration, seed=seed, progress=progress, blender=blender)
     return {**head, "results": rows}

@@ -68,7 +68,12 @@ def evaluate_group(
 
 
 def summarise(rows: list[dict[str, Any]], policies: list[str]) -> list[dict[str, Any]]:
-    """Per policy: share of groups lowered, mean / 5th percentile / worst change (%), bound fraction, deviations."""
+    """Per policy: share of groups lowered, mean / 5th percentile / worst change (%), bound fraction, deviations.
+
+    Naturalness over the groups (:mod:`cogblocks.diagrams.naturalness`): ``max_step_rad`` (the largest per-tick
+    change of wrap(θ_L2 − θ_L0) on any group), ``mean_jumps_per_min``, ``jump_free_share`` (share of groups
+    without a jump) and ``max_peak_speed_ratio`` (the largest of the groups' peak phase speed ratios).
+    """
     summary = []
     for policy in policies:
         results = [next(r for r in row["results"] if r["policy"] == policy) for row in rows]
@@ -84,9 +89,20 @@ def summarise(rows: list[dict[str, Any]], policies: list[str]) -> list[dict[str,
                 "mean_bound_fraction": float(np.mean(fractions)) if fractions else None,
                 "mean_dev_rad": float(np.mean([r["mean_dev_rad"] for r in results])),
                 "max_dev_rad": float(np.max([r["max_dev_rad"] for r in results])),
+                **_naturalness_summary(results),
             }
         )
     return summary
+
+
+def _naturalness_summary(results: list[dict[str, Any]]) -> dict[str, float]:
+    jumps = np.array([r["jumps_per_min"] for r in results])
+    return {
+        "max_step_rad": float(np.max([r["max_step_rad"] for r in results])),
+        "mean_jumps_per_min": float(jumps.mean()),
+        "jump_free_share": float(np.mean(jumps == 0.0)),
+        "max_peak_speed_ratio": float(np.max([r["peak_speed_ratio"] for r in results])),
+    }
 
 
 def heldout_table(

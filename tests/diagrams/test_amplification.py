@@ -117,7 +117,9 @@ def test_cli_json_and_plot(capsys, tmp_path, monkeypatch):
     for name, row in [*result.items(), *remove.items()]:
         timing = {"solve_ms_p50", "solve_ms_p99", "decision_ms_p50", "decision_ms_p99", "solve_ticks"}
         extra = {*timing, "fallbacks", "decisions"} if name == "optimised" else set()
-        assert set(row) == {"encoded", "terminal_ok", "final_distance_mm", "n"} | extra | judged
+        assert set(row) == {"encoded", "terminal_ok", "final_distance_mm", "n", "naturalness"} | extra | judged
+        assert set(row["naturalness"]["velocity_step_ratio"]) == {"median", "max"}
+        assert 0.0 <= row["naturalness"]["steps_within_share"] <= 1.0
         assert row["encoded_independent"] == row["judges"]["ensemble"] and set(row["judges"]) == {
             "ensemble",
             "kinematic",

@@ -134,13 +134,16 @@ def test_run_sync_mean_policy_improves_every_group():
         assert 0 < row["mean_dev_rad"] <= row["max_dev_rad"] <= np.pi / 2 + 1e-9  # bounded by λ_max
 
 
+NATURALNESS = {"max_step_rad", "jumps_per_min", "peak_speed_ratio"}
+
+
 def test_cli_sync_json(capsys, tmp_path):
     plot = tmp_path / "sync.png"
     assert main(["run", "sync", "--group", "1", "--policy", "mean", "--json", "--plot", str(plot)]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["group"] == 1 and round(result["r_without"], 2) == 0.76
     (row,) = result["results"]
-    assert set(row) == {"policy", "r_with", "change_pct", "mean_dev_rad", "max_dev_rad"}
+    assert set(row) == {"policy", "r_with", "change_pct", "mean_dev_rad", "max_dev_rad"} | NATURALNESS
     assert row["change_pct"] == pytest.approx(100 * (row["r_with"] / result["r_without"] - 1))
     assert plot.stat().st_size > 10_000
 

@@ -24,6 +24,10 @@ KEYS = {
     "mean_bound_fraction",
     "mean_dev_rad",
     "max_dev_rad",
+    "max_step_rad",
+    "mean_jumps_per_min",
+    "jump_free_share",
+    "max_peak_speed_ratio",
 }
 
 
