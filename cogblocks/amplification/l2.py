@@ -13,7 +13,7 @@ from cogblocks.amplification.smoothing import VelocityStepLimiter
 from cogblocks.amplification.solution import SolutionTable
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim import Block, Diagram
-from cogblocks.sim.params import block_with_ports, one_of, positive_int
+from cogblocks.sim.params import block_with_ports, finite_number, one_of, positive_int
 
 __all__ = ["L2Amplification"]
 
@@ -126,6 +126,7 @@ class L2Amplification(Diagram):
         self.connect(fix.v_u, blender.v_u)
         altered, human = blender.v_a, [buffer.v, blender.v_h, fix.v_h]
         if step_limit is not None:  # between the rule and everything that reads the altered velocity
+            step_limit = finite_number(self, "step_limit", step_limit, low=0.0, low_open=True)
             limiter = self.add("limiter", VelocityStepLimiter(step_limit))
             self.connect(blender.v_a, limiter.v)
             altered = limiter.v_a

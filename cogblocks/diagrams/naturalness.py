@@ -121,8 +121,8 @@ def position_naturalness(p_avatar: Any, p_person: Any, dt: float = 0.01) -> dict
     Returns
     -------
     dict
-        ``position_peak_speed_ratio`` (peak |velocity| of the avatar over the person's) and
-        ``position_rms_jerk_ratio`` (RMS of |jerk|, the same way round).
+        ``position_peak_speed_ratio`` (peak speed of the avatar over the person's) and
+        ``position_rms_jerk_ratio`` (RMS of the jerk's norm, the same way round).
     """
     va, _, ja = _derivatives(p_avatar, dt, "p_avatar")
     vp, _, jp = _derivatives(p_person, dt, "p_person")
@@ -153,7 +153,7 @@ def movement_naturalness(altered: Sequence[Any], human: Sequence[Any], dt: float
     -------
     dict
         Per movement the altered movement's figure over its human's: ``velocity_step_ratio`` (largest per-tick
-        change of the velocity vector), ``peak_accel_ratio`` (peak |acceleration|; with accelerations as the
+        change of the velocity vector), ``peak_accel_ratio`` (peak acceleration norm; with accelerations as the
         velocity's differences over ``dt`` it equals the step ratio) and ``rms_jerk_ratio``; each summarised over
         the movements as ``{"median", "max"}``. Also ``steps_within_share`` (share of movements whose altered
         largest step is at most the human's, to 1e-9 of it) and the medians of the raw figures,

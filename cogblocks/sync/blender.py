@@ -11,7 +11,8 @@ through it)."""
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import asdict, replace
+from typing import Any
 
 from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.blocks.specs import PHASE
@@ -177,6 +178,13 @@ class Blender(Block):
         if self.psi == "triangular":
             return 1.0 - ax
         return math.exp(1.0 - 1.0 / (1.0 - ax * ax))
+
+    @property
+    def init_arguments(self) -> dict[str, Any]:
+        """The constructor's arguments, with ``params`` given as its fields: a diagram file holds plain numbers."""
+        arguments = dict(super().init_arguments)
+        params = arguments.pop("params", None)
+        return {**asdict(params), **arguments} if params is not None else arguments
 
     def lam_inf(self, e: float) -> float:
         """λ∞ of eq. (5) for a deviation ``e = θ_L2 − θ_L0``."""

@@ -141,10 +141,15 @@ class MotionComputer(Block):
     names their presets. ``MotionComputer(policy, n=..., ...)``, the name's earlier meaning, still builds
     an :class:`OscillatorMotion`, with a :class:`DeprecationWarning`; ``MotionComputer(n, assisted)`` is a
     block with the role's ports that holds θ_ref at 0.
+
+    Bad data policy: the role's own block ignores its inputs, so NaN or inf in them never reaches
+    θ_ref; each implementation states its own policy.
     """
 
     def __new__(cls, *args: Any, **kwargs: Any) -> MotionComputer:
-        if cls is MotionComputer and ("policy" in kwargs or (args and callable(getattr(args[0], "act", None)))):
+        # the old form: a policy first (anything but the role's n), or an oscillator's own keywords
+        old_form = bool(args) and not isinstance(args[0], (int, np.integer))
+        if cls is MotionComputer and (old_form or {"policy", "gain", "omega_init", "adjacency"} & kwargs.keys()):
             warnings.warn(
                 "MotionComputer(policy, ...) is now OscillatorMotion(policy, ...); MotionComputer names the role",
                 DeprecationWarning,

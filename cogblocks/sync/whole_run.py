@@ -2,18 +2,15 @@
 
 Within the blender's limits, a reference can only choose the alteration ``a_k = θ_L2 − θ_L0`` of each tick in
 ``[−λ_k, λ_k]``, so a plan is a sequence of alteration fractions ``s_k = a_k / λ_k`` in ``[−1, 1]``
-(``θ_ref,k = θ_L0,k + λ_k s_k``). This module holds what both the offline bound
-(:mod:`cogblocks.analysis.sync_ocp`) and the planning motion computer (:class:`~cogblocks.sync.planned.PlannedMotion`)
-search with:
+(``θ_ref,k = θ_L0,k + λ_k s_k``). The offline bound (:mod:`cogblocks.analysis.sync_ocp`) and the planning motion
+computer (:class:`~cogblocks.sync.planned.PlannedMotion`) search with:
 
 * :func:`tick_model`: one 10 ms tick of the group, the blender (hard clip, ψ, κ switch) and the order parameter of
   the phases with θ_L2 substituted, as a casadi function; :func:`alteration_rollout` runs it over a plan;
 * :func:`rule_rollouts`: simple reference rules (doing nothing, the others' circular mean, constant frequencies) in
   closed loop on the same model in NumPy, all at once; :func:`switch_rules` the rules a window can switch to;
-* :func:`sweep`: block-coordinate ascent over consecutive windows (a rule switched to, or an IPOPT correction on
-  knots), each step kept only if the mean r to the end rises;
-* :func:`rule_plan`, :func:`refine_plan` and :func:`plan_alterations`: the best rule from a given state, then
-  sweeps (over the whole plan, or its first windows only): a plan for the rest of a run, or its next seconds.
+* :func:`sweep`: block-coordinate ascent over windows (a rule, or IPOPT on knots), kept only if the mean r rises;
+* :func:`rule_plan`, :func:`refine_plan`, :func:`plan_alterations`: the best rule from a state, then sweeps.
 """
 
 from __future__ import annotations

@@ -154,6 +154,7 @@ def test_run_amplification_and_cli(monkeypatch, capsys):
             "decision_ms_p50",
             "decision_ms_p99",
             "solve_ticks",
+            "naturalness",
         }
         | judged
     )

@@ -197,7 +197,7 @@ def test_linearize_the_blender_with_wrapped_inputs():
     d.expose_output("lam", bl.lam)
     d.compile(0.01)
     sys = linearize(d, inputs={"l0": 0.0, "ref": 0.1})
-    assert sys.state_labels == ["bl.lam_now"] and sys.input_labels == ["l0", "ref"]
+    assert sys.state_labels == ["bl.lam_now", "bl.shift_now"] and sys.input_labels == ["l0", "ref"]
     slope = -(bl.lam_max - bl.lam_min) / bl.e_max
     np.testing.assert_allclose(sys.A, [[1 - 0.01 * bl.kappa_minus]], atol=1e-9)
     np.testing.assert_allclose(sys.B, [[0.01 * bl.kappa_minus * -slope, 0.01 * bl.kappa_minus * slope]], atol=1e-8)

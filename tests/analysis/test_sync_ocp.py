@@ -137,7 +137,7 @@ def test_the_clairvoyant_bound_is_above_the_noisy_policies_and_the_run_without_l
     found = windowed_control_bound(NOISY, pace=False, details=True)
     assert found["r_model"] == pytest.approx(found["r"], abs=1e-9)
     without = Simulator(pop_sync(NOISY, l2=False)).run(n_steps=TICKS)["r"].mean()
-    mean_rule = Simulator(pop_sync(NOISY, motion="mean")).run(n_steps=TICKS)["r"].mean()
+    mean_rule = Simulator(pop_sync(NOISY, motion="mean", blender="deliverable")).run(n_steps=TICKS)["r"].mean()
     assert found["starts"]["mean_closed_loop"] == pytest.approx(mean_rule, abs=1e-9)
     assert found["r"] >= max(without, mean_rule) - 1e-9
     assert upper_bound(NOISY, pace=False) == pytest.approx(found["r"], abs=1e-12)  # no noise-free scan mixed in

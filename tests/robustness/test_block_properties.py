@@ -75,6 +75,7 @@ from cogblocks.sync import (
     MeanPhaseMotion,
     MotionComputer,
     OrderParameter,
+    OscillatorMotion,
 )
 
 TWO_PI = 2.0 * math.pi
@@ -674,7 +675,7 @@ class FixedPolicy:
         pass
 
     def act(self, context) -> int:
-        # MotionComputer's policy: a policy only ever sees finite contexts
+        # OscillatorMotion's policy: a policy only ever sees finite contexts
         assert np.isfinite(context.theta).all() and math.isfinite(context.lam), f"non-finite context {context}"
         return self.action
 
@@ -682,7 +683,7 @@ class FixedPolicy:
 @st.composite
 def motion_computer(draw):
     n = draw(st.integers(2, 6))
-    return MotionComputer(
+    return OscillatorMotion(
         FixedPolicy(draw(st.integers(0, 10))),
         n=n,
         assisted=draw(st.integers(0, n - 1)),
@@ -692,7 +693,7 @@ def motion_computer(draw):
 
 
 register(
-    MotionComputer,
+    OscillatorMotion,
     motion_computer(),
     lambda b: {"theta": phase((len(b.others) + 1,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
     ["theta", "lam"],
@@ -715,6 +716,20 @@ def l2_sync(draw):
         n = draw(st.integers(2, 6))
         motion = MeanPhaseMotion(n, draw(st.integers(0, n - 1)))
     return L2Sync(motion, motion.assisted, blender=draw(st.none() | stable_blender()))
+
+
+@st.composite
+def motion_role(draw):
+    n = draw(st.integers(2, 6))
+    return MotionComputer(n, draw(st.integers(0, n - 1)))
+
+
+register(
+    MotionComputer,
+    motion_role(),
+    lambda b: {"theta": phase((b.n,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
+    ["theta", "lam"],
+)
 
 
 def register_l2_sync() -> None:

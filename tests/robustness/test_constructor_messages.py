@@ -436,6 +436,7 @@ CASES = [
     case("L2Sync", "assisted", 0, "assisted index 1"),
     case("L2Sync", "blender", 5, "outputs ['theta_l2', 'lam']", given="int"),
     case("L2Amplification", "library", 5, "ReachLibrary", given="int"),
+    case("L2Amplification", "step_limit", -1.0, "(0.0, inf)"),
     case("L2Amplification", "table", 5, "SolutionTable for e_des=1", given="int"),
     case("L2Amplification", "corrector", 5, "outputs ['v_u', 'alpha']", given="int"),
     case("L2Amplification", "blending", 5, "outputs ['v_a', 'c']", given="int"),

@@ -32,9 +32,11 @@ class ConstantReference(Block):
 
 
 def _run(group: SyncGroup, ticks: int = 401) -> tuple[dict, NoiseGate]:
+    # the gate rebuilds θ_L2 with the deliverable's law (it does not yet take plan_through): its blender here
     motion = noise_gated(ConstantReference(group.n), group.n, group.assisted, adjacency=group.graph)
     sim = Simulator(
-        pop_sync(group, motion=motion), probes=["l2.theta_ref", "l2.motion.noisy", "l2.motion.fallback.theta_ref"]
+        pop_sync(group, motion=motion, blender="deliverable"),
+        probes=["l2.theta_ref", "l2.motion.noisy", "l2.motion.fallback.theta_ref"],
     )
     trace = sim.run(n_steps=ticks)
     return trace, sim.compiled.blocks["l2.motion.gate"]

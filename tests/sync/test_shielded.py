@@ -238,7 +238,7 @@ def test_the_shielded_network_is_the_default_dqn_and_the_network_alone_is_dqn_ra
 
 
 def test_constructor_checks():
-    with pytest.raises(ValueError, match="ShieldedMotion: motion must be a MotionComputer, got str"):
+    with pytest.raises(ValueError, match="ShieldedMotion: motion must be an OscillatorMotion, got str"):
         ShieldedMotion("dqn")
     motion = _motion(SteerPolicy(), 3, 0, 1.0, "ring")
     with pytest.raises(ValueError, match=r"ShieldedMotion: margin must be a finite number in \[0.0, inf\), got -0.1"):
