@@ -199,9 +199,11 @@ def test_linearize_the_blender_with_wrapped_inputs():
     sys = linearize(d, inputs={"l0": 0.0, "ref": 0.1})
     assert sys.state_labels == ["bl.lam_now", "bl.shift_now"] and sys.input_labels == ["l0", "ref"]
     slope = -(bl.lam_max - bl.lam_min) / bl.e_max
-    np.testing.assert_allclose(sys.A, [[1 - 0.01 * bl.kappa_minus]], atol=1e-9)
-    np.testing.assert_allclose(sys.B, [[0.01 * bl.kappa_minus * -slope, 0.01 * bl.kappa_minus * slope]], atol=1e-8)
-    np.testing.assert_allclose(sys.C, [[0.0], [1.0]], atol=1e-9)
+    # shift_now, the last alteration θ_ref − θ_L0, is memory only: it follows the inputs and feeds nothing
+    np.testing.assert_allclose(sys.A, [[1 - 0.01 * bl.kappa_minus, 0.0], [0.0, 0.0]], atol=1e-9)
+    k = 0.01 * bl.kappa_minus
+    np.testing.assert_allclose(sys.B, [[k * -slope, k * slope], [-1.0, 1.0]], atol=1e-8)
+    np.testing.assert_allclose(sys.C, [[0.0, 0.0], [1.0, 0.0]], atol=1e-9)
     np.testing.assert_allclose(sys.D, [[0.0, 1.0], [0.0, 0.0]], atol=1e-9)
 
 

@@ -83,9 +83,9 @@ def test_motion_computers_share_ports_and_checks():
     d = pop_sync(2, motion=mean, blender="deliverable")
     d.replace("l2.motion", l3)
     Simulator(d).run(n_steps=5)
-    with pytest.raises(ValueError, match="MotionComputer: policy must have an act"):
+    with pytest.raises(ValueError, match="OscillatorMotion: policy must have an act"):
         MotionComputer(object(), n=3, assisted=0, gain=1.0, omega_init=1.0)
-    omega_message = r"MotionComputer: omega_init must be a finite number in \[-15.0, 15.0\], got 20"
+    omega_message = r"OscillatorMotion: omega_init must be a finite number in \[-15.0, 15.0\], got 20"
     with pytest.raises(ValueError, match=omega_message):
         MotionComputer(Hold(), n=3, assisted=0, gain=1.0, omega_init=20)
     with pytest.raises(ValueError, match=r"MeanPhaseMotion: assisted must be a 0-based index in \[0, 2\], got 3"):
