@@ -113,6 +113,15 @@ def _offline(arch_port, arch, data, unit, wrapped=False):
     return np.array([compiled.step()["y"] for _ in range(len(data))])
 
 
+def _live_blender():
+    """A fresh blender like the one ``live_sync`` puts behind its motion computer by default."""
+    from cogblocks.diagrams.sync import DEFAULT_BLENDER
+    from cogblocks.sync import Blender
+    from cogblocks.sync.blending import blender_params
+
+    return Blender(params=blender_params("offline", DEFAULT_BLENDER))
+
+
 def test_the_phase_diagram_tracks_a_sine_streamed_at_100_hz(lsl, streamer, stream_name):
     from cogblocks.live import live_phase, run_realtime
     from cogblocks.phase import PhaseEstimator
@@ -168,7 +177,7 @@ def test_sync_and_l1_run_live_as_they_run_offline(lsl, streamer, stream_name):
         assert report.ticks == report.samples_out == 50 and report.samples_in >= 40
         assert np.all(np.isfinite(report.trace["sample"][5:]))
         if compiled is sync:
-            arch = L2Sync(MOTIONS["dqn"](group), group.assisted)
+            arch = L2Sync(MOTIONS["dqn"](group), group.assisted, _live_blender())
             offline = _offline(("theta", "theta_l2"), arch, report.trace["sample"], "rad", wrapped=True)
             np.testing.assert_allclose(offline, report.trace["theta_l2"], rtol=0, atol=1e-12)
         else:
@@ -197,7 +206,11 @@ def test_replan_decides_on_its_thread_live_and_plays_what_it_would_offline(lsl, 
     # the same samples offline, deciding inline: the same plans, so the same θ_L2 to the bit
     offline_block = RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=None)
     offline = _offline(
-        ("theta", "theta_l2"), L2Sync(offline_block, group.assisted), report.trace["sample"], "rad", wrapped=True
+        ("theta", "theta_l2"),
+        L2Sync(offline_block, group.assisted, _live_blender()),
+        report.trace["sample"],
+        "rad",
+        wrapped=True,
     )
     np.testing.assert_allclose(offline, report.trace["theta_l2"], rtol=0, atol=1e-12)
     assert [p[0] for p in offline_block.plans] == [p[0] for p in block.plans]
