@@ -46,6 +46,7 @@ MODULES = [
     "benchmarks.live",
     "benchmarks.scope",
     "benchmarks.loaders",
+    "benchmarks.batch",
 ]
 
 

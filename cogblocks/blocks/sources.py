@@ -34,6 +34,8 @@ class Constant(Block):
     Bad data policy: no inputs; a non-finite value is refused when built.
     """
 
+    batchable = True  # the same value in every run
+
     def __init__(self, value: Any, *, unit: str = "1", wrapped: bool = False, period: float | None = None) -> None:
         super().__init__(period=period)
         given = np.asarray(value)
