@@ -33,8 +33,12 @@ def evaluate_group(
     thorough: bool = False,
     domain: str = "phase",
     blender: str = DEFAULT_BLENDER,
+    done: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """One group: r without L2, the bound, and per policy r with L2, the change and the deviations.
+
+    ``done`` holds figures already computed (a row of :func:`~cogblocks.diagrams.sync_batch.sync_rows`,
+    from a batch): its policies are not run again.
 
     Returns
     -------
@@ -47,7 +51,11 @@ def evaluate_group(
         the clairvoyant one (the noise draw known). ``domain="position"`` runs the policies on phases estimated
         from arm positions (the bound stays the phase domain's).
     """
-    result = run_sync(group, policies, domain, blender=blender)
+    ready = {row["policy"]: row for row in (done or {}).get("results", [])}
+    result = run_sync(group, [p for p in policies if p not in ready], domain, blender=blender)
+    if done is not None:
+        computed = {row["policy"]: row for row in result["results"]}
+        result = {"r_without": done["r_without"], "results": [ready.get(p) or computed[p] for p in policies]}
     r_without = result["r_without"]
     # without the pace start unless thorough: it would cost as much again
     r_bound = upper_bound(group, pace=False, thorough=thorough) if bound else None
@@ -120,6 +128,7 @@ def heldout_table(
     noise: bool = False,
     domain: str = "phase",
     blender: str = DEFAULT_BLENDER,
+    batch: bool = False,
 ) -> dict[str, Any]:
     """Evaluate ``policies`` (all of :data:`MOTIONS` by default) on ``n_groups`` groups of ``split`` and ``seed``.
 
@@ -154,6 +163,10 @@ def heldout_table(
         Where the policies read the phases (see :func:`~cogblocks.diagrams.sync.pop_sync`).
     blender : {"continuous", "deliverable"}
         The blender of every closed loop (:func:`~cogblocks.diagrams.sync.pop_sync`'s); the bound is the deliverable's.
+    batch : bool
+        Run the policies that batch (:data:`~cogblocks.diagrams.sync_batch.BATCHED_MOTIONS`) and the runs
+        without L2 on batched diagrams, the groups that share a structure together (phase domain; the same
+        figures, bit for bit); the other policies and the bounds run group by group.
 
     Returns
     -------
@@ -175,13 +188,21 @@ def heldout_table(
         if not max_duration > 0:
             raise ValueError(f"max_duration must be positive, got {max_duration}")
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
+    done: list[Any] = [None] * len(groups)
+    if batch and domain == "phase":
+        from cogblocks.diagrams.sync_batch import BATCHED_MOTIONS, sync_rows
+
+        done = sync_rows(groups, [p for p in policies if p in BATCHED_MOTIONS], blender)
     if workers == 1:
-        rows = [evaluate_group(group, policies, bound, thorough, domain, blender) for group in groups]
+        rows = [
+            evaluate_group(g, policies, bound, thorough, domain, blender, d) for g, d in zip(groups, done, strict=True)
+        ]
     else:
         from joblib import Parallel, delayed
 
         rows = Parallel(n_jobs=workers, backend="loky")(
-            delayed(evaluate_group)(g, policies, bound, thorough, domain, blender) for g in groups
+            delayed(evaluate_group)(g, policies, bound, thorough, domain, blender, d)
+            for g, d in zip(groups, done, strict=True)
         )
     table: dict[str, Any] = {"n_groups": len(groups), "seed": seed, "policies": summarise(rows, policies)}
     if any(group.noise is not None for group in groups):

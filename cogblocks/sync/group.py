@@ -87,8 +87,8 @@ class KuramotoGroup(Block):
     Notes
     -----
     The block runs a batch of runs at once (``compile(dt, batch=B)``): ``omega`` and ``theta0``
-    may then hold one row per run (shape (B, N)), ``seed`` one seed per run; each row is the run
-    of a block built with that row's values, bit for bit.
+    may then hold one row per run (shape (B, N)), ``gain`` one value per run (shape (B,)), ``seed``
+    one seed per run; each row is the run of a block built with that row's values, bit for bit.
 
     Bad data policy: for that tick, a non-finite frequency is replaced by the
     constructor's ``omega`` and a non-finite θ_L2 by the assisted
@@ -130,7 +130,12 @@ class KuramotoGroup(Block):
         if n < 2:
             raise ValueError(f"KuramotoGroup: omega must hold at least 2 frequencies, got {n}")
         self.n = n
-        self.gain = finite_number(self, "gain", gain, low=0.0)
+        if np.ndim(gain) == 1:  # one gain per run of a batch
+            self.gain = finite_array(self, "gain", gain, ndim=1)
+            if np.any(self.gain < 0):
+                raise ValueError(f"KuramotoGroup: gain must be >= 0, got {gain!r}")
+        else:
+            self.gain = finite_number(self, "gain", gain, low=0.0)
         if sparse is not None and not isinstance(sparse, (bool, np.bool_)):
             raise ValueError(f"KuramotoGroup: sparse must be True, False or None, got {sparse!r}")
         self.add_scratch("coupling", None)  # the graph and its work buffer
@@ -198,7 +203,12 @@ class KuramotoGroup(Block):
     def _size_for_batch(self) -> None:
         """The state and work buffers with the batch axis; rows of per-run parameters checked against the batch."""
         lead, n = self.batch_shape, self.n
-        for name, value in (("omega", self.omega0), ("theta0", self._theta0)):
+        gain = np.asarray(self.gain)
+        for name, value in (
+            ("omega", self.omega0),
+            ("theta0", self._theta0),
+            ("gain", gain[:, None] if gain.ndim else gain),
+        ):
             if value.ndim == 2 and value.shape[0] != self.batch:
                 raise self._fail(
                     f"{name} holds {value.shape[0]} runs (shape {value.shape}); compile with batch={value.shape[0]}"
@@ -210,6 +220,7 @@ class KuramotoGroup(Block):
         self.add_scratch("_seen", np.zeros(lead + (n,)))
         self.add_scratch("_rate", np.zeros(lead + (n,)))
         self.coupling.size_for(lead)
+        self._gain = gain[:, None] if gain.ndim else self.gain  # broadcasts over each run's participants
         if self.noisy:
             self.add_state("drift", np.zeros(lead + (n,)))
             self.add_scratch("_draw", np.zeros(lead + (2 * n,)))
@@ -243,7 +254,7 @@ class KuramotoGroup(Block):
         if self.omega.driven and not np.isfinite(omega).all():  # the default is finite by construction
             omega = np.where(np.isfinite(omega), omega, self.omega0)
         rate = self.coupling.pull(seen, self._rate)
-        rate *= self.gain
+        rate *= self._gain
         rate += omega
         rate *= self.dt
         phase = self.phase

@@ -95,3 +95,23 @@ def test_per_run_parameters_need_their_batch():
     with pytest.raises(ValueError, match="per-run seeds; compile with batch=2"):
         g = KuramotoGroup(TABLE2[3].omega, 0.1, noise=0.1, seed=[1, 2])
         g.setup()
+
+
+def test_groups_of_one_structure_batch_and_give_run_syncs_figures():
+    from cogblocks.diagrams.sync import run_sync
+    from cogblocks.diagrams.sync_batch import batches, sync_rows
+
+    groups = [
+        replace(TABLE2[2], duration=3.0),
+        replace(TABLE2[3], duration=2.0),  # a shorter run in the same batch: its figures over its own samples
+        replace(TABLE2[1], duration=1.0),
+    ]
+    assert batches(groups) == [[0, 1], [2]] and batches(groups, "dqn_raw") == [[0], [1], [2]]
+    rows = sync_rows(groups, ["mean", "dqn_raw"], blender="continuous")
+    for group, row in zip(groups, rows, strict=True):
+        alone = run_sync(group, ["mean", "dqn_raw"], blender="continuous")
+        assert row["r_without"] == pytest.approx(alone["r_without"], abs=1e-12)
+        for mine, theirs in zip(row["results"], alone["results"], strict=True):
+            assert mine.keys() == theirs.keys()
+            for key, value in theirs.items():
+                assert mine[key] == (value if isinstance(value, str) else pytest.approx(value, abs=1e-12)), key
