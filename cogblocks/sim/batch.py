@@ -65,8 +65,13 @@ class RowCopies:
         self._upds = [copy.update for copy in self.copies]
 
     def bind(self) -> None:
-        """Point each copy's inputs at its row of what drives the block's inputs (bound by :func:`bind`)."""
+        """Point each copy's ports at its row of the block's arrays (the inputs bound by :func:`bind`).
+
+        Called again after a deep copy of the plan, which copies each row view as an array of its own.
+        """
         for b, copy in enumerate(self.copies):
+            for name, port in copy._outputs.items():
+                port.value = self.block._outputs[name].value[b, ...]
             for name, port in copy._inputs.items():
                 given = self.block._inputs[name]
                 port.value, port.driven = given.value[b, ...], given.driven

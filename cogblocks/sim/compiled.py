@@ -55,6 +55,8 @@ class CompiledDiagram:
         Base step in seconds.
     k : int
         Index of the next tick to run.
+    batch : int or None
+        Runs at once (``compile(dt, batch=B)``, :mod:`cogblocks.sim.batch`), or None: no batch axis.
     blocks : dict
         Leaf blocks by dotted path, in execution order.
     diagram : Diagram
@@ -133,6 +135,8 @@ class CompiledDiagram:
             moved["source"] = self.source
             moved["_paths"] = {id(b): p for p, b in moved["blocks"].items()}
             self.__dict__.update(moved)
+            for rows in self._rows.values():  # the copied row views are arrays of their own: view the rows again
+                rows.bind()
         finally:
             self._lock.release()
 

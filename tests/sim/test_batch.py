@@ -168,3 +168,17 @@ def test_a_batched_trace_picks_runs_and_becomes_a_long_frame(tmp_path):
         Trace(t, {"r": np.zeros(3)}, batch=2)
     with pytest.raises(IndexError, match=r"\[0, 1\]"):
         trace.run(2)
+
+
+def test_an_earlier_batched_plan_continues_on_its_copy_after_a_new_compile():
+    u = feed(40, batch=3, seed=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PerRowWarning)
+        d = chain()
+        sim = Simulator(d.compile(0.01, batch=3), probes=["sq.y", "src.y"])
+        first = sim.run(n_steps=20, inputs={"u": u[:20]})
+        d.compile(0.01, batch=3)  # takes the blocks: the earlier plan moves to a private copy, per-row copies too
+        second = sim.run(n_steps=20, inputs={"u": u[20:]})
+        whole = Simulator(chain(), probes=["sq.y", "src.y"], batch=3).run(n_steps=40, inputs={"u": u})
+    for name in ("src.y", "sq.y"):
+        assert np.array_equal(np.concatenate([first[name], second[name]]), whole[name])
