@@ -78,6 +78,8 @@ class Playback(Block):
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
+        if not isinstance(per_run, (bool, np.bool_)):
+            raise ValueError(f"Playback: per_run must be True or False, got {per_run!r}")
         arr = np.array(data, dtype=np.float64)
         if arr.ndim < 1 + bool(per_run) or len(arr) == 0:
             raise ValueError(f"Playback: data must be an array with at least one row, got shape {arr.shape}")
