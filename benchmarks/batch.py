@@ -99,7 +99,7 @@ def run(quick: bool = False) -> Iterator[dict]:
     group = TABLE2[3]
     batch = 100 if quick else 1000
     n_steps = 50 if quick else 300
-    repeats = 1 if quick else 3
+    repeats = 1 if quick else 5
     us = 1e6 / (batch * n_steps)
 
     diagram_s, r_diagram, per_row = _best(lambda: _diagram_batch(group, "mean", batch, n_steps), repeats)

@@ -247,11 +247,12 @@ class MeanPhaseMotion(MotionComputer):
 
     def _output_rows(self) -> None:
         phases = self.theta.value[:, self.others]
-        finite = np.isfinite(phases)
-        with np.errstate(invalid="ignore"):
+        if math.isfinite(np.add.reduce(phases, axis=None)):  # one cheap check for the whole batch
             cos, sin = np.cos(phases), np.sin(phases)
-            if not finite.all():
-                cos, sin = np.where(finite, cos, 0.0), np.where(finite, sin, 0.0)
+        else:
+            finite = np.isfinite(phases)
+            with np.errstate(invalid="ignore"):
+                cos, sin = np.where(finite, np.cos(phases), 0.0), np.where(finite, np.sin(phases), 0.0)
         c, s = cos.sum(axis=-1), sin.sum(axis=-1)
         theta_ref = np.mod(np.arctan2(s, c), 2.0 * math.pi)
         theta_ref[theta_ref >= 2.0 * math.pi] = 0.0
@@ -335,9 +336,8 @@ class OscillatorMotion(MotionComputer):
         return callable(getattr(self.policy, "act_rows", None))
 
     def setup(self) -> None:
-        lead = self.batch_shape
-        self.add_state("theta_l3", np.zeros(lead) if lead else 0.0)
-        self.add_state("omega_prev", np.full(lead, self.omega_init) if lead else self.omega_init)
+        for name, start in (("theta_l3", 0.0), ("omega_prev", self.omega_init)):  # one per run of a batch
+            self.add_state(name, np.full(self.batch_shape, start) if self.batch is not None else start)
 
     def _update_rows(self, k: int) -> None:
         theta, lam, theta_l3, omega_prev = self.theta.value, self.lam.value, self.theta_l3, self.omega_prev

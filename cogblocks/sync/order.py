@@ -49,14 +49,14 @@ class OrderParameter(Block):
         self.r.value[...] = math.hypot(np.add.reduce(np.cos(theta)), np.add.reduce(np.sin(theta))) / theta.size
 
     def _output_rows(self, theta: np.ndarray) -> None:
-        finite = np.isfinite(theta)
-        if finite.all():
+        if math.isfinite(np.add.reduce(theta, axis=None)):  # one cheap check for the whole batch
             c, s = np.add.reduce(np.cos(theta), axis=-1), np.add.reduce(np.sin(theta), axis=-1)
             if self.batch == 1:  # a batch of one is the unbatched run to the bit
                 self.r.value[...] = math.hypot(c[0], s[0]) / self._n
             else:
                 np.divide(np.hypot(c, s), self._n, out=self.r.value)
             return
+        finite = np.isfinite(theta)
         with np.errstate(invalid="ignore"):
             c = np.add.reduce(np.where(finite, np.cos(theta), 0.0), axis=-1)
             s = np.add.reduce(np.where(finite, np.sin(theta), 0.0), axis=-1)
