@@ -3,13 +3,13 @@ import json
 from cogblocks.data.groups import random_groups
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.sim import Simulator
-from cogblocks.sync.gated import noise_gated
+from cogblocks.sync.gated import GatedMotion
 from cogblocks.sync.motion import MeanPhaseMotion
 
 out = []
 for noisy in (False, True):
     for g in random_groups(16, "validation", 0, noise=noisy):
-        m = noise_gated(MeanPhaseMotion(g.n, g.assisted), g.n, g.assisted, adjacency=g.graph)
+        m = GatedMotion(MeanPhaseMotion(g.n, g.assisted), adjacency=g.graph)
         sim = Simulator(pop_sync(g, motion=m))
         sim.run(n_steps=201)
         out.append(

@@ -75,6 +75,13 @@ def _replan_motion(group: SyncGroup) -> Block:
     )
 
 
+def _gated_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import GatedMotion
+
+    # replan while the group's own prediction errors say it is the deterministic model, else the circular mean
+    return GatedMotion(_replan_motion(group))
+
+
 def _guard_motion(group: SyncGroup) -> Block:
     from cogblocks.sync import GuardedPacingMotion
 
@@ -87,11 +94,14 @@ def _guard_motion(group: SyncGroup) -> Block:
 #: while a prediction on the group identified online says it does not lower r); ``lookahead`` plans 25 ticks ahead on
 #: the true model; ``mean`` follows the others' circular mean; ``mpc``, ``pace``, ``guard`` and ``replan`` plan on a
 #: model they identify online (``replan`` re-plans to the trial's end every second with the bound's search); ``plan``
-#: plans the whole trial at once with it (offline: seconds of CPU in one tick). Add an entry to make a policy available
-#: to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
+#: plans the whole trial at once with it (offline: seconds of CPU in one tick); ``gated`` is ``replan`` behind a
+#: :class:`~cogblocks.sync.GatedMotion`, which switches to the circular mean once the group's one-tick prediction
+#: errors say it is noisy (people, estimated phases) and reports the world it found. Add an entry to make a policy
+#: available to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line.
 MOTIONS: dict[str, Callable[[SyncGroup], Block]] = {
     "dqn": _dqn_motion,
     "dqn_raw": _dqn_raw_motion,
+    "gated": _gated_motion,
     "guard": _guard_motion,
     "lookahead": _lookahead_motion,
     "mean": _mean_motion,

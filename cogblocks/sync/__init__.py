@@ -22,6 +22,7 @@ from cogblocks.sync.stability import LambdaReport, check_blender, lambda_report
 
 _LAZY = {
     "DQNPolicy": "cogblocks.sync.dqn_policy",
+    "GatedMotion": "cogblocks.sync.gated",
     "GroupIdentifier": "cogblocks.sync.identification",
     "GuardedPacingMotion": "cogblocks.sync.guarded",
     "MPCMotion": "cogblocks.sync.mpc",
@@ -40,6 +41,7 @@ __all__ = [
     "Blender",
     "BlenderParams",
     "DQNPolicy",
+    "GatedMotion",
     "GroupIdentifier",
     "GuardedPacingMotion",
     "KuramotoGroup",
