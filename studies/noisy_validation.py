@@ -1,6 +1,6 @@
 """Validation runs of the noisy groups (never the test split): one JSON file per call, rows per group.
 
-python studies/noisy_validation.py OUT.json --policies replan mean dqn guard [--bound] [--noise-free]
+python studies/noisy_validation.py OUT.json --policies replan mean dqn guard [--bound [--thorough]] [--noise-free]
     [--domain position] [--groups 16] [--max-duration 60] [--blender continuous]
 """
 
@@ -16,6 +16,7 @@ parser = argparse.ArgumentParser()
 parser.add_argument("out")
 parser.add_argument("--policies", nargs="+", default=["mean"])
 parser.add_argument("--bound", action="store_true")
+parser.add_argument("--thorough", action="store_true", help="the thorough bound (about 3x the CPU)")
 parser.add_argument("--noise-free", action="store_true")
 parser.add_argument("--domain", default="phase")
 parser.add_argument("--groups", type=int, default=16)
@@ -31,6 +32,7 @@ table = heldout_table(
     max_duration=args.max_duration,
     split="validation",
     bound=args.bound,
+    thorough=args.thorough,
     noise=not args.noise_free,
     domain=args.domain,
     blender=args.blender,

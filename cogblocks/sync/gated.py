@@ -195,12 +195,34 @@ class NoiseGate(Block):
         return math.sqrt(max(0.0, ssr) * dt / dof)
 
 
+class _Idle(Block):
+    """Passes the phases to the inner motion computer until the gate's ``noisy`` output says the fallback plays for
+    good, then NaN: every motion computer's bad data policy ignores a non-finite phase, so a planner stops deciding
+    (and spending CPU) once its reference is no longer played. ``noisy`` is read in :meth:`update` (the gate's
+    outputs depend on the model's): the phases stop one tick after the switch."""
+
+    def __init__(self, n: int) -> None:
+        super().__init__()
+        self.add_input("theta", PHASE.with_(shape=(n,)))
+        self.add_input("noisy", Signal(unit="1"), feedthrough=False)
+        self.add_output("theta_model", PHASE.with_(shape=(n,)))
+        self.add_state("idle", False)
+
+    def output(self, k: int) -> None:
+        self.theta_model.value[...] = math.nan if self.idle else self.theta.value
+
+    def update(self, k: int) -> None:
+        self.idle = self.idle or float(self.noisy.value) == 1.0
+
+
 class GatedMotion(Diagram):
     """A motion computer behind a :class:`NoiseGate`: its reference while the group behaves as the model, then the
     fallback's. One block with the motion computers' ports and ``noisy``.
 
     Blocks: ``model`` (the motion computer given), ``fallback`` (a :class:`~cogblocks.sync.MeanPhaseMotion`, with
-    ``fallback="mean"``) and ``gate``.
+    ``fallback="mean"``), ``gate``, and ``idle``, which feeds the model the phases until the fallback plays for good
+    and NaN from the next tick on (the model's bad data policy then leaves it idle: a planner stops deciding, so a
+    gated planner costs little more than the fallback among noise).
 
     Ports
     -----
@@ -274,10 +296,13 @@ class GatedMotion(Diagram):
         )
         self.n, self.assisted = gate.n, gate.assisted
         self._blender: BlenderParams | None = None
+        idle = self.add("idle", _Idle(gate.n))
         self.add("model", model)
         self.add("gate", gate)
+        self.connect(idle.theta_model, model.theta)
+        self.connect(gate.noisy, idle.noisy)
         self.connect(model.theta_ref, gate.ref_model)
-        inputs: dict[str, list[Any]] = {"theta": [model.theta, gate.theta], "lam": [model.lam, gate.lam]}
+        inputs: dict[str, list[Any]] = {"theta": [idle.theta, gate.theta], "lam": [model.lam, gate.lam]}
         if fallback == "mean":
             mean = self.add("fallback", MeanPhaseMotion(n, assisted))
             self.connect(mean.theta_ref, gate.ref_fallback)

@@ -155,3 +155,14 @@ def test_bad_gate_parameters_are_refused_by_name(options, message):
     kwargs = {"n": 6, "assisted": 2, **options}
     with pytest.raises(ValueError, match=message):
         NoiseGate(**kwargs)
+
+
+def test_a_gated_planner_stops_deciding_once_the_fallback_plays_for_good():
+    group = dataclasses.replace(NOISY, duration=4.0)
+    motion = MOTIONS["gated"](group)
+    trace = Simulator(pop_sync(group, motion=motion), probes=["l2.motion.idle.theta_model"]).run(n_steps=401)
+    assert motion.world == "noisy"
+    seen = trace["l2.motion.idle.theta_model"]
+    assert np.isfinite(seen[:201]).all() and np.isnan(seen[201:]).all()  # one tick after the switch at tick 200
+    planner = motion["model"]
+    assert planner.plans and max(start for start, _, _ in planner.plans) <= 300  # nothing decided after 2 s
