@@ -4,7 +4,8 @@ python studies/noisy_candidates.py OUT.json --policies replan_h5f [--groups 16] 
 
 ``replan_hHf``: :class:`~cogblocks.sync.RecedingPlanMotion` planning H s ahead (not to the trial's end), its identifier
 tracking drifting frequencies (``KuramotoRLS(omega_forgetting=0.995)``, a memory of about 2 s on each ω);
-``gated_hHf``: the same behind :class:`~cogblocks.sync.GatedMotion`.
+``gated_hHf``: the same behind :class:`~cogblocks.sync.GatedMotion`; ``gated_dS``: ``replan`` behind the gate, deciding
+first after S s.
 """
 
 from __future__ import annotations
@@ -49,6 +50,10 @@ for name in args.policies:
             return GatedMotion(motion) if kind == "gated" else motion
 
         MOTIONS[name] = build
+    found = re.fullmatch(r"gated_d([\d.]+)", name)
+    if found:  # replan behind the gate, deciding first after the given seconds
+        after = float(found.group(1))
+        MOTIONS[name] = lambda g, after=after: GatedMotion(MOTIONS["replan"](g), decide_after=after)
 start = time.process_time()
 table = heldout_table(
     args.groups,
