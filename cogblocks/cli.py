@@ -247,7 +247,7 @@ def _build_parser() -> argparse.ArgumentParser:
         action="append",
         type=POLICY,
         metavar="NAME",
-        help="motion computer(s) to run: dqn, dqn_raw, guard, lookahead, mean, mpc, pace, plan, replan "
+        help="motion computer(s) to run: dqn, dqn_raw, gated, guard, lookahead, mean, mpc, pace, plan, replan "
         "(default: dqn, lookahead, mean and pop_sync's default, replan; with --random every one); repeatable; "
         "with several, --plot FILE draws one figure per policy, FILE-<policy>",
     )
