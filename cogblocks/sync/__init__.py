@@ -9,7 +9,7 @@ first use, so that this package loads without torch and without casadi.
 import importlib
 from typing import Any
 
-from cogblocks.sync.blender import DELIVERABLE_BLENDER, Blender
+from cogblocks.sync.blender import Blender
 from cogblocks.sync.blending import BLENDERS, CONTINUOUS, DELIVERABLE, BlenderParams
 from cogblocks.sync.group import KuramotoGroup, KuramotoOscillator, ring_adjacency
 from cogblocks.sync.l2 import L2Sync
@@ -35,7 +35,6 @@ __all__ = [
     "BLENDERS",
     "CONTINUOUS",
     "DELIVERABLE",
-    "DELIVERABLE_BLENDER",
     "ArmPositions",
     "Blender",
     "BlenderParams",
@@ -66,6 +65,8 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
+    if name == "DELIVERABLE_BLENDER":  # deprecated: the blender module's own __getattr__ warns
+        return getattr(importlib.import_module("cogblocks.sync.blender"), name)
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'cogblocks.sync' has no attribute {name!r}")

@@ -57,16 +57,16 @@ MARGIN = 0.02
 HORIZON = 20.0
 COMMIT = 0
 
-#: Default ``early`` (s): an alteration must also beat doing nothing over the prediction's first 10 s. Chosen in
-#: session 10 on the 600 validation groups and seed 3's 200 test groups (development data since their report), by a
-#: rule declared before the run: pooled, none below -0.5 % (the default without it: 1, seed 3's group 100 at -10.4 %),
-#: 4 lowered, mean +3.52 % (docs/pop-sync.md, "Guarded pacing motion computer").
+#: Default ``early`` (s): an alteration must also beat doing nothing over the prediction's first 10 s, so that a
+#: prediction that pays off late cannot hide an early loss. On the 600 validation groups and test seed 3's 200 groups
+#: pooled, by a rule declared before the run: none below -0.5 % (without it: 1, seed 3's group 100 at -10.4 %),
+#: 4 lowered, mean +3.52 % (docs/validation/sync.md, "Guarded pacing motion computer").
 EARLY = 10.0
 
 #: What :meth:`GuardedPacingMotion.for_trial` changes when the trial's length is known: each decision predicts every
 #: candidate held to the trial's end (at most 300 s), at the 10 ms tick of the group's own simulation, one decision
 #: every 10 s spread over its period, and no margin or early test (the whole-run prediction is what is scored).
-#: Chosen in session 12 on validation groups 0-199 (docs/pop-sync.md, "A fourth round"). The first period is
+#: Chosen on validation groups 0-199 (docs/validation/sync.md, "Guarded pacing motion computer"). The first period is
 #: :data:`FIRST_PERIOD` ticks, longer on a long trial so that the first decision's fan-out to the end costs at most
 #: :data:`FIRST_STEPS_PER_TICK` Euler steps a tick (a 300 s trial: 300 ticks, not 300 steps a tick).
 TRIAL: dict[str, Any] = {
