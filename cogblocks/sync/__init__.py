@@ -2,7 +2,7 @@
 its stability check, the motion computers with their L3 policies and the group model they plan with,
 and the L2 architecture as one block.
 
-``DQNPolicy``, ``MPCMotion``, ``RecedingPlanMotion`` and ``GroupIdentifier`` are imported on
+``DQNPolicy``, ``MPCMotion``, ``RecedingPlanMotion``, ``whole_trial_plan`` and ``GroupIdentifier`` are imported on
 first use, so that this package loads without torch and without casadi.
 """
 
@@ -30,6 +30,7 @@ _LAZY = {
     "PlannedMotion": "cogblocks.sync.planned",
     "RecedingPlanMotion": "cogblocks.sync.receding",
     "ShieldedMotion": "cogblocks.sync.shielded",
+    "whole_trial_plan": "cogblocks.sync.planned",
 }
 
 __all__ = [
@@ -60,6 +61,7 @@ __all__ = [
     "check_blender",
     "lambda_report",
     "ring_adjacency",
+    "whole_trial_plan",
 ]
 
 

@@ -86,8 +86,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
         The blender the plan goes through (the deliverable's by default).
     decide_every : float or None
         The decision period (s, a multiple of the 10 ms tick): a decision takes effect one period after it starts.
-        ``None``: one decision, the whole trial planned from the next tick once the model is trusted and played open
-        loop (``end`` and ``horizon=None`` needed; :func:`~cogblocks.sync.planned.whole_trial_plan` builds it).
+        ``None``: one decision, the whole trial planned at once, played open loop (``whole_trial_plan`` builds it).
     horizon : float or None
         How far a plan reaches (s): the predicted mean r over it is what a decision maximises. ``None``: to the
         trial's end (``end`` needed).
@@ -158,9 +157,10 @@ class RecedingPlanMotion(_IdentifyingMotion):
         self.decide_ticks = None if decide_every is None else _ticks(self, "decide_every", decide_every)
         if horizon is None and self.end is None:
             raise ValueError("RecedingPlanMotion: horizon=None plans to the trial's end, which needs end")
-        if decide_every is None and horizon is not None:
+        if decide_every is None and (horizon is not None or worker != "inline"):
             raise ValueError(
-                "RecedingPlanMotion: decide_every=None plans the whole trial at once, which needs horizon=None"
+                "RecedingPlanMotion: decide_every=None plans the whole trial at once, in the tick it decides: "
+                f"it needs horizon=None and worker='inline', got horizon={horizon!r}, worker={worker!r}"
             )
         self.horizon_ticks = None if horizon is None else _ticks(self, "horizon", horizon)
         if self.horizon_ticks is not None and self.horizon_ticks < self.decide_ticks:

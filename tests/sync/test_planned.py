@@ -125,9 +125,12 @@ def test_bad_sweeps_are_refused_with_a_clear_message(sweeps, message):
         whole_trial_plan(3, 0, end=10.0, sweeps=sweeps)
 
 
-def test_a_whole_trial_plan_needs_its_horizon_to_reach_the_trials_end():
-    with pytest.raises(ValueError, match="decide_every=None plans the whole trial at once, which needs horizon=None"):
+def test_a_whole_trial_plan_reaches_the_trials_end_and_is_made_inline():
+    message = "decide_every=None plans the whole trial at once, in the tick it decides: it needs horizon=None"
+    with pytest.raises(ValueError, match=message + r" and worker='inline', got horizon=5.0, worker='inline'"):
         RecedingPlanMotion(3, 0, end=10.0, decide_every=None, horizon=5.0)
+    with pytest.raises(ValueError, match=message + r".* got horizon=None, worker='thread'"):
+        RecedingPlanMotion(3, 0, end=10.0, decide_every=None, horizon=None, worker="thread")
 
 
 def test_the_deprecated_class_warns_names_the_preset_and_plays_the_same_plan():
