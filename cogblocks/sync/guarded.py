@@ -52,24 +52,24 @@ __all__ = [
 #: gains of ~0.012 in mean r act on a 15-participant ring near locking that lost 1.1 %; 0.02 leaves it unaltered.
 MARGIN = 0.02
 
-#: Default ``horizon`` (s) and ``commit`` (periods): a 20 s prediction, every decision chosen afresh. Chosen on all
-#: 600 groups of ``random_groups(600, "validation", 0)``, with ``end`` the group's duration, by a rule declared before
-#: the run (fewest groups below -0.5 %, then fewest lowered, then the highest mean): lowered 1 (0.2 %), none below
-#: -0.5 %, mean +3.63 %, against horizon 10 s and commit 10's 6, 4 and +3.47 % (docs/pop-sync.md, "Guarded pacing
-#: motion computer"). Without ``end``, 20 s scored beyond a short run's end and lost on short groups.
+#: Default ``horizon`` (s) and ``commit`` (periods): a 20 s prediction, every decision chosen afresh. Chosen on all 600
+#: groups of ``random_groups(600, "validation", 0)``, with ``end`` the group's duration, by a rule declared before the
+#: run (fewest groups below -0.5 %, then fewest lowered, then the highest mean): lowered 1 (0.2 %), none below -0.5 %,
+#: mean +3.63 %, against horizon 10 s and commit 10's 6, 4 and +3.47 % (docs/validation/sync.md, "How each earlier
+#: default was chosen"). Without ``end``, 20 s scored beyond a short run's end and lost on short groups.
 HORIZON = 20.0
 COMMIT = 0
 
 #: Default ``early`` (s): an alteration must also beat doing nothing over the prediction's first 10 s, so that a
 #: prediction that pays off late cannot hide an early loss. On the 600 validation groups and test seed 3's 200 groups
 #: pooled, by a rule declared before the run: none below -0.5 % (without it: 1, seed 3's group 100 at -10.4 %),
-#: 4 lowered, mean +3.52 % (docs/validation/sync.md, "Guarded pacing motion computer").
+#: 4 lowered, mean +3.52 % (docs/validation/sync.md, "How each earlier default was chosen").
 EARLY = 10.0
 
 #: What :meth:`GuardedPacingMotion.for_trial` changes when the trial's length is known: each decision predicts every
 #: candidate held to the trial's end (at most 300 s), at the 10 ms tick of the group's own simulation, one decision
-#: every 10 s spread over its period, and no margin or early test (the whole-run prediction is what is scored).
-#: Chosen on validation groups 0-199 (docs/validation/sync.md, "Guarded pacing motion computer"). The first period is
+#: every 10 s spread over its period, and no margin or early test (the whole-run prediction is what is scored). Chosen
+#: on validation groups 0-199 (docs/validation/sync.md, "How each earlier default was chosen"). The first period is
 #: :data:`FIRST_PERIOD` ticks, longer on a long trial so that the first decision's fan-out to the end costs at most
 #: :data:`FIRST_STEPS_PER_TICK` Euler steps a tick (a 300 s trial: 300 ticks, not 300 steps a tick).
 TRIAL: dict[str, Any] = {

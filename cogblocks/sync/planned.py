@@ -7,10 +7,10 @@ model with the search of the whole-run bound (the best reference rule from the p
 sweeps of :data:`~cogblocks.sync.sweeps.WHOLE_TRIAL_SWEEPS`, every step kept only if the predicted mean r to the
 trial's end rises), and plays it open loop.
 
-The plan is computed in one tick: about 0.3 s of CPU per second of trial (docs/validation/sync.md, "Planning the
-whole trial"), so it is for simulated trials, not for live runs at 100 Hz, and it is only as good as the identified
-model (ω to about 5e-5 rad/s after 1 s on a simulated group). The receding plan (``MOTIONS["replan"]``) re-plans from
-the observed state every second instead.
+The plan is computed in one tick: about 0.3 s of CPU per second of trial (docs/validation/sync.md, "Every test run,
+in one table"), so it is for simulated trials, not for live runs at 100 Hz, and it is only as good as the identified
+model (ω to about 5e-5 rad/s after 1 s on a simulated group). The receding plan (``MOTIONS["replan"]``) re-plans
+from the observed state every second instead.
 
 :class:`PlannedMotion`, the same as a class of its own, is deprecated.
 """

@@ -11,7 +11,7 @@ __all__ = ["WHOLE_TRIAL_SWEEPS", "checked_sweeps"]
 
 #: The sweeps of a plan of the whole trial (window, tail, knot in s): the bound's first sweep, then the thorough
 #: bound's three passes. Looked at on validation groups 0-59 of ``random_groups(600, "validation", 0)``
-#: (docs/validation/sync.md, "Planning the whole trial").
+#: (docs/validation/sync.md, "Every test run, in one table").
 WHOLE_TRIAL_SWEEPS: tuple[tuple[float, float, float], ...] = (
     (4.0, 4.0, 0.25),
     (2.0, 6.0, 0.25),
