@@ -14,7 +14,7 @@ from cogblocks.diagrams.amplification import pop_amplification
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.experiments.files import diagram_from_dict, diagram_to_dict, load_diagram, save_diagram
 from cogblocks.sim import Block, Diagram, DiagramError, Signal, Simulator
-from cogblocks.sync import ArmPositions, KuramotoGroup, MeanPhaseMotion, MotionComputer, RecedingPlanMotion
+from cogblocks.sync import ArmPositions, KuramotoGroup, MeanPhaseMotion, OscillatorMotion, RecedingPlanMotion
 
 torch.set_num_threads(1)
 
@@ -204,7 +204,7 @@ def test_what_cannot_be_saved_is_refused_by_name():
     with pytest.raises(TypeError, match=r"arms: parameter 'seed': a Generator cannot be stored"):
         diagram_to_dict(d)
     g = TABLE2[1]
-    motion = MotionComputer(HoldPolicy(), n=g.n, assisted=g.assisted, gain=g.gain, omega_init=4.0)
+    motion = OscillatorMotion(HoldPolicy(), n=g.n, assisted=g.assisted, gain=g.gain, omega_init=4.0)
     with pytest.raises(TypeError, match=r"l2: parameter 'motion': parameter 'policy': a HoldPolicy cannot"):
         diagram_to_dict(pop_sync(1, motion=motion, blender="deliverable"))
     d = Diagram()
