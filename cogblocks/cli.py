@@ -24,6 +24,7 @@ from cogblocks.cli_options import (
 )
 from cogblocks.experiments.amplification_cli import add_amplification_parser
 from cogblocks.experiments.cli import add_sweep_parser
+from cogblocks.experiments.heldout_cli import run_sync_heldout
 from cogblocks.experiments.recordings_cli import add_analyse_parser, add_recording_options
 from cogblocks.live.cli import add_live_parser
 
@@ -57,7 +58,7 @@ def _run_sync(args: argparse.Namespace) -> int:
     from cogblocks.experiments.sync import sync_trace
 
     if args.random is not None:  # every policy unless some are named
-        return _run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
+        return run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
     if args.split != "test" or args.no_bound or args.thorough_bound or args.max_duration is not None or args.noise:
         raise ValueError("--split, --no-bound, --thorough-bound, --max-duration and --noise apply to --random N only")
     # the main job: the published comparison and pop_sync's own default motion computer
@@ -106,50 +107,6 @@ def _figure_paths(path: str | None, motions: list[str]) -> dict[str, str]:
         return {motions[0]: path}
     file = Path(path)
     return {m: str(file.with_name(f"{file.stem}-{m}{file.suffix}")) for m in motions}
-
-
-def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
-    from cogblocks.diagrams.sync import DEFAULT_MOTION
-    from cogblocks.evaluation.sync_heldout import heldout_table, plot_heldout
-
-    if args.duration is not None or args.save_trace:
-        raise ValueError("--random evaluates each group over its own duration: drop --duration and --save-trace")
-    result = heldout_table(
-        args.random,
-        args.seed,
-        motions,
-        workers=args.workers,
-        blender=args.blender,
-        max_duration=args.max_duration,
-        details=bool(args.plot),
-        split=args.split,
-        bound=not args.no_bound,
-        thorough=args.thorough_bound,
-        noise=args.noise,
-        domain=args.domain,
-    )
-    groups = result.pop("groups", None)
-    held = ("held-out " if args.split == "test" else "") + ("noisy " if args.noise else "")
-
-    def render(r: dict[str, Any]) -> str:
-        lines = [
-            f"{r['n_groups']} {held}random groups ({args.split} split, seed {r['seed']}): change of the mean order "
-            f"parameter with L2 (pop_sync's default policy: {DEFAULT_MOTION})",
-            f"  {'policy':>10}  lowered  mean %   p5 %  worst %  of bound |θ_L2 − θ_L0| rad  max step  jumps/min speed",
-        ]
-        for row in r["policies"]:
-            bound = "–" if row["mean_bound_fraction"] is None else f"{row['mean_bound_fraction']:.2f}"
-            lines.append(
-                f"  {row['policy']:>10}  {100 * row['lowered_share']:5.1f} %  {row['mean_change_pct']:+6.2f} "
-                f"{row['p5_change_pct']:+6.2f}  {row['worst_change_pct']:+7.2f}  {bound:>8}  "
-                f"{row['mean_dev_rad']:.3f} / {row['max_dev_rad']:.3f}    {row['max_step_rad']:.3f} rad  "
-                f"{row['mean_jumps_per_min']:9.1f}  {row['max_peak_speed_ratio']:4.1f}x"
-            )
-        return "\n".join(lines)
-
-    print_result(result, args.json, render)
-    plot_output(args.plot, lambda path: plot_heldout({**result, "groups": groups}, path))
-    return 0
 
 
 def _run_phase3d(args: argparse.Namespace) -> int:
