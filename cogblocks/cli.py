@@ -10,24 +10,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from cogblocks.cli_options import (
-    COUNT,
-    DURATION,
-    PLOT_PATH,
-    POLICY,
-    SEED,
-    STEP,
-    TRACE_PATH,
-    plot_output,
-    print_result,
-    write_output,
-)
-from cogblocks.experiments.amplification_cli import add_amplification_parser
-from cogblocks.experiments.cli import add_sweep_parser
-from cogblocks.experiments.heldout_cli import run_sync_heldout
-from cogblocks.experiments.recordings_cli import add_analyse_parser, add_recording_options
-from cogblocks.live.cli import add_live_parser
-
 __all__ = ["main"]
 
 
@@ -35,6 +17,7 @@ __all__ = ["main"]
 
 
 def _run_demo(args: argparse.Namespace) -> int:
+    from cogblocks.cli_options import plot_output, print_result, write_output
     from cogblocks.diagrams.demo import demo_run, plot_demo
 
     result, trace = demo_run(duration=args.duration)
@@ -53,8 +36,10 @@ def _run_demo(args: argparse.Namespace) -> int:
 
 
 def _run_sync(args: argparse.Namespace) -> int:
+    from cogblocks.cli_options import plot_output, write_output
     from cogblocks.diagrams.naturalness import naturalness_text
     from cogblocks.diagrams.sync import DEFAULT_MOTION, DEFAULT_MOTIONS, MOTIONS, plot_sync, sync_table
+    from cogblocks.experiments.heldout_cli import run_sync_heldout
     from cogblocks.experiments.sync import sync_trace
 
     if args.random is not None:  # every policy unless some are named
@@ -110,6 +95,7 @@ def _figure_paths(path: str | None, motions: list[str]) -> dict[str, str]:
 
 
 def _run_phase3d(args: argparse.Namespace) -> int:
+    from cogblocks.cli_options import plot_output, print_result
     from cogblocks.diagrams.phase3d import phase3d_accuracy, plot_phase3d, run_phase_chain
 
     if not 30.0 <= args.rate <= 240.0:
@@ -138,6 +124,7 @@ def _run_phase3d(args: argparse.Namespace) -> int:
 
 
 def _run_phase1d(args: argparse.Namespace) -> int:
+    from cogblocks.cli_options import plot_output, print_result
     from cogblocks.evaluation.phase1d import EVALUATION_SEEDS, evaluate_grid, plot_grid
 
     if not 1 <= args.signals <= len(EVALUATION_SEEDS) or not args.duration >= 10.0 or args.workers < 1:
@@ -167,6 +154,12 @@ def _run_phase1d(args: argparse.Namespace) -> int:
 
 
 def _build_parser() -> argparse.ArgumentParser:
+    from cogblocks.cli_options import COUNT, DURATION, POLICY, SEED, STEP
+    from cogblocks.experiments.amplification_cli import add_amplification_parser
+    from cogblocks.experiments.cli import add_sweep_parser
+    from cogblocks.experiments.recordings_cli import add_analyse_parser, add_recording_options
+    from cogblocks.live.cli import add_live_parser
+
     parser = argparse.ArgumentParser(
         prog="cogblocks",
         description="Run the cognitive architectures of L1/L2 virtual humans as discrete-time block diagrams.",
@@ -266,6 +259,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def _common(p: argparse.ArgumentParser, trace: bool = False) -> None:
+    from cogblocks.cli_options import PLOT_PATH, TRACE_PATH
+
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.add_argument(
         "--plot", type=PLOT_PATH, metavar="FILE", help="after the results, save a figure to FILE (png, pdf, svg, ...)"
@@ -284,11 +279,14 @@ def _version() -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``cogblocks`` command."""
-    parser = _build_parser()
-    try:
+    try:  # the command's modules load here: Ctrl-C while they do stops as cleanly as during a run
+        parser = _build_parser()
         args = parser.parse_args(argv)  # every option is checked here, before any simulation
     except SystemExit as exit_:  # --help, --version, or a bad option (argparse printed why)
         return int(exit_.code or 0)
+    except KeyboardInterrupt:
+        print("cogblocks: interrupted by Ctrl-C before the command started", file=sys.stderr)
+        return 130
     handler = getattr(args, "handler", None)
     if handler is None:
         parser.print_help()
