@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from cogblocks.cli_options import POLICY, STEP, output_type, write_safely
+from cogblocks.cli_options import POLICY, PORT, STEP, output_type, write_safely
 from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["add_live_parser"]
@@ -207,7 +207,7 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
             "--scope",
             nargs="?",
             const=SCOPE_PORT,
-            type=int,
+            type=PORT,
             metavar="PORT",
             help=f"serve a page that plots the run on http://127.0.0.1:PORT/ (default port {SCOPE_PORT})",
         )
@@ -233,5 +233,5 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
         "view", help="show a saved run (.npz from --save) or a recorded session (.xdf) in the browser, with a slider"
     )
     view.add_argument("file", metavar="TRACE", help="a trace saved by --save (.npz) or a session (.xdf)")
-    view.add_argument("--port", type=int, default=SCOPE_PORT, help=f"port on 127.0.0.1 (default {SCOPE_PORT})")
+    view.add_argument("--port", type=PORT, default=SCOPE_PORT, help=f"port on 127.0.0.1 (default {SCOPE_PORT})")
     view.set_defaults(handler=_run_view)
