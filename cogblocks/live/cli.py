@@ -46,10 +46,10 @@ def _print(args: argparse.Namespace, report: Any, what: str) -> None:
 
 def _run_live(args: argparse.Namespace) -> int:
     try:
+        from cogblocks.data.xdf_write import RecordingError
         from cogblocks.live.ready import live_diagram
         from cogblocks.live.runner import run_realtime, save_report
-        from cogblocks.live.session import enable_recording, write_session
-        from cogblocks.live.xdf import RecordingError
+        from cogblocks.live.session import SessionRecorder
     except ImportError as exc:
         raise ValueError(f'cogblocks live needs the live extra: pip install -e ".[live]" ({exc})') from None
     options = _options(args)
@@ -57,10 +57,10 @@ def _run_live(args: argparse.Namespace) -> int:
         compiled = live_diagram(options).compile(DT)
     except KeyboardInterrupt:
         return 130
-    if args.record:
-        enable_recording(compiled)
-    scope = None
+    recorder = scope = report = None
     try:
+        if args.record:  # written as the run goes: a crash loses half a second at most
+            recorder = SessionRecorder(args.record, compiled, options)
         if args.scope is not None:
             from cogblocks.live.scope import Scope
 
@@ -73,6 +73,7 @@ def _run_live(args: argparse.Namespace) -> int:
             record=bool(args.save),
             record_raw=bool(args.save),
             scope=scope,
+            recorder=recorder,
         )
     finally:
         for block in compiled.blocks.values():
@@ -80,10 +81,15 @@ def _run_live(args: argparse.Namespace) -> int:
                 block.close()
         if scope is not None:
             scope.close()
+        if recorder is not None and report is None:  # the run failed: what it recorded stays in the file
+            try:
+                recorder.close(interrupted=True)
+            except RecordingError as exc:
+                print(f"cogblocks: error: {exc}", file=sys.stderr)
     code = 0
-    if args.record:
+    if recorder is not None:
         try:
-            write_session(args.record, compiled, report, options)
+            recorder.close(report.interrupted)
         except RecordingError as exc:
             print(f"cogblocks: error: {exc}", file=sys.stderr)
             code = 1

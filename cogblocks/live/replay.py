@@ -181,7 +181,8 @@ def replay_session(diagram: Diagram, session: Session, *, record: bool = True) -
         if isinstance(block, LSLOutlet):
             block.offline = True
     compiled = diagram.compile(session.dt)
-    n = session.ticks()
+    # a run killed mid-write may have recorded a tick's figures without its last clocks: the ticks all hold
+    n = min([session.ticks(), *(len(b._source.ticks) for b in inlets.values())])
     blocks = list(compiled.blocks.values())
     ages = [b.age_ms.value for b in inlets.values()]
     tick_s = np.zeros(n)
@@ -195,7 +196,7 @@ def replay_session(diagram: Diagram, session: Session, *, record: bool = True) -
                 max_age = float(age)
         if record:
             rows.append(out)
-    figures = session.run_figures()
+    figures = {key: value[:n] for key, value in session.run_figures().items()}
     return RealtimeReport(
         ticks=n,
         late_ticks=int(figures["late"].sum()),

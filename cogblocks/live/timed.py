@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from cogblocks.data.units import length_factor
 from cogblocks.live.resample import Resampler
-from cogblocks.live.units import length_factor
 from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number, flag, one_of, shape_arg, unit_arg, wrapped_arg
 

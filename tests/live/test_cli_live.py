@@ -214,3 +214,42 @@ def test_live_scope_serves_the_run_on_loopback(lsl, streamer, stream_name):
         out, err = cli.communicate(timeout=60)
     assert cli.returncode == 0, err
     assert "400 ticks at 100 Hz" in out
+
+
+def _recorded_ticks(pyxdf, path):
+    """Ticks of the run stream in the session file as it is now (0 before the first write)."""
+    if not path.exists():
+        return 0
+    streams, _ = pyxdf.load_xdf(str(path), synchronize_clocks=False, dejitter_timestamps=False)
+    return sum(len(s["time_stamps"]) for s in streams if s["info"]["name"][0] == "cogblocks run")
+
+
+def test_a_run_killed_mid_session_leaves_a_file_that_replays_tick_for_tick(lsl, streamer, stream_name, tmp_path):
+    """The session is written as the run goes: after SIGKILL the file reads and replays what was computed."""
+    pyxdf = pytest.importorskip("pyxdf", reason="the recordings extra (pyxdf) is not installed")
+    from cogblocks.cli import main
+
+    streamer(f"{stream_name}-arm", lambda t: 150.0 * np.cos(2 * np.pi * t))
+    record, replayed = tmp_path / "s.xdf", tmp_path / "replay.npz"
+    arm, out = f"{stream_name}-arm", f"{stream_name}-phase"
+    cli = _cli("phase", "--in", arm, "--out", out, "--duration", "600", "--record", str(record))
+    try:
+        _reader(lsl, out).pull_sample(timeout=5.0)  # it runs
+        deadline = time.monotonic() + 120  # a guard against a hung run, not a measure of speed
+        while _recorded_ticks(pyxdf, record) < 100:
+            assert time.monotonic() < deadline and cli.poll() is None, "no ticks written to the session file"
+            time.sleep(0.2)
+    finally:
+        cli.kill()
+        cli.communicate(timeout=30)
+    assert cli.returncode == -signal.SIGKILL
+    streams, _ = pyxdf.load_xdf(str(record), synchronize_clocks=False, dejitter_timestamps=False)
+    by_name = {s["info"]["name"][0]: s for s in streams}
+    assert set(by_name) == {arm, out, "inlet ticks", "cogblocks run"}
+    n = len(by_name["cogblocks run"]["time_stamps"])
+    assert n >= 100 and len(by_name["inlet ticks"]["time_stamps"]) >= n and len(by_name[arm]["time_stamps"]) > 0
+    # the replay computes, tick for tick, the phase the killed run published
+    assert main(["replay", str(record), "phase", "--save", str(replayed), "--json"]) == 0
+    with np.load(replayed) as run:
+        assert len(run["theta"]) == n
+        np.testing.assert_array_equal(run["theta"], by_name[out]["time_series"][:n, 0])
