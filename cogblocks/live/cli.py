@@ -137,7 +137,10 @@ def _run_view(args: argparse.Namespace) -> int:
     from cogblocks.live.scope import ScopeView
     from cogblocks.live.view import load_run
 
-    t, signals, units, late = load_run(args.file)
+    skipped: list[str] = []
+    t, signals, units, late = load_run(args.file, skipped)
+    for line in skipped:  # what the page cannot draw, named
+        print(f"cogblocks view: not shown: {line}", file=sys.stderr, flush=True)
     scope = ScopeView(t, signals, units, late, port=args.port, title=f"cogblocks view {args.file}")
     print(f"view of {args.file} at {scope.url} (Ctrl-C stops)", flush=True)
     try:
@@ -236,8 +239,8 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
         p.set_defaults(handler=_run_replay)
 
     view = commands.add_parser(
-        "view", help="show a saved run (.npz from --save) or a recorded session (.xdf) in the browser, with a slider"
+        "view", help="show a saved run (.npz from --save), a session or any XDF file (LabRecorder's) in the browser"
     )
-    view.add_argument("file", metavar="TRACE", help="a trace saved by --save (.npz) or a session (.xdf)")
+    view.add_argument("file", metavar="TRACE", help="a trace saved by --save (.npz), a session or any XDF file (.xdf)")
     view.add_argument("--port", type=PORT, default=SCOPE_PORT, help=f"port on 127.0.0.1 (default {SCOPE_PORT})")
     view.set_defaults(handler=_run_view)

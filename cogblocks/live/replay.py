@@ -17,7 +17,11 @@ from cogblocks.live.session import RUN_STREAM
 from cogblocks.live.timed import StreamHeader, TimedInlet
 from cogblocks.sim import Diagram
 
-__all__ = ["RecordedStream", "Session", "load_session", "replay_session"]
+__all__ = ["NotASession", "RecordedStream", "Session", "load_session", "replay_session"]
+
+
+class NotASession(ValueError):
+    """An XDF file that pyxdf reads but no ``cogblocks live --record`` wrote (a LabRecorder file)."""
 
 
 def _desc(stream: dict[str, Any]) -> dict[str, Any]:
@@ -160,7 +164,7 @@ def load_session(path: str | os.PathLike) -> Session:
         raise ValueError(f"{path}: not a readable XDF file ({type(exc).__name__}: {exc})") from None
     run = [s for s in streams if s["info"]["name"][0] == RUN_STREAM]
     if not run:
-        raise ValueError(f"{path}: not a cogblocks session (no {RUN_STREAM!r} stream; record with --record)")
+        raise NotASession(f"{path}: not a cogblocks session (no {RUN_STREAM!r} stream; record with --record)")
     meta = _cogblocks(run[0])
     return Session(path, streams, float(meta.get("dt", "0.01")), json.loads(meta.get("options") or "{}"))
 
