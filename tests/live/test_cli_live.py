@@ -166,30 +166,16 @@ def test_the_record_path_is_checked_before_the_run(lsl, stream_name, tmp_path, c
     assert code == 2 and "ending in one of .xdf" in capsys.readouterr().err
 
 
-def test_view_serves_a_saved_trace_until_ctrl_c(tmp_path):
-    import urllib.request
-
+def test_view_serves_a_saved_trace_until_ctrl_c(tmp_path, view_server):
     t = 0.01 * np.arange(500)
     np.savez(tmp_path / "run.npz", t=t, theta=np.mod(t, 2 * np.pi), tick_ms=np.ones(500), start_ms=np.zeros(500))
-    view = subprocess.Popen(
-        [sys.executable, "-m", "cogblocks.cli", "view", str(tmp_path / "run.npz"), "--port", "0"],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        line = view.stdout.readline()
-        assert line.startswith(f"view of {tmp_path / 'run.npz'} at http://127.0.0.1:"), line + view.stderr.read()
-        url = line.split(" at ")[1].split()[0]
-        meta = json.loads(urllib.request.urlopen(url + "meta", timeout=10).read())
-        data = json.loads(urllib.request.urlopen(url + "data", timeout=10).read())
-        assert meta["mode"] == "view" and [p["series"] for p in meta["panels"]] == [["theta"], ["late"]]
-        assert data["t"] == t.tolist() and data["ticks"] == 500 and data["theta"][7] == [0.07]
-    finally:
-        view.send_signal(signal.SIGINT)
-        out, err = view.communicate(timeout=20)
-    assert view.returncode == 0, err
+    view = view_server(tmp_path / "run.npz")
+    assert view.line.startswith(f"view of {tmp_path / 'run.npz'} at http://127.0.0.1:"), view.line
+    meta, data = view.get("meta"), view.get("data")
+    assert meta["mode"] == "view" and [p["series"] for p in meta["panels"]] == [["theta"], ["late"]]
+    assert data["t"] == t.tolist() and data["ticks"] == 500 and data["theta"][7] == [0.07]
+    code, err = view.stop()
+    assert code == 0, err
 
 
 def test_live_scope_serves_the_run_on_loopback(lsl, streamer, stream_name):

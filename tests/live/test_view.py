@@ -1,12 +1,5 @@
 """``cogblocks view`` on an XDF file that other programs recorded (LabRecorder): every numeric stream on one grid."""
 
-import json
-import signal
-import subprocess
-import sys
-import urllib.request
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -14,8 +7,6 @@ pyxdf = pytest.importorskip("pyxdf", reason="the recordings extra (pyxdf) is not
 
 from cogblocks.data.xdf_write import XDFStream, write_xdf  # noqa: E402
 from cogblocks.live.view import load_run  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def _labrecorder_file(path):
@@ -59,23 +50,11 @@ def test_a_file_with_nothing_to_draw_is_named(tmp_path):
         load_run(tmp_path / "events.xdf")
 
 
-def test_view_serves_a_labrecorder_file_and_says_what_it_leaves_out(tmp_path):
+def test_view_serves_a_labrecorder_file_and_says_what_it_leaves_out(tmp_path, view_server):
     _labrecorder_file(tmp_path / "lab.xdf")
-    view = subprocess.Popen(
-        [sys.executable, "-m", "cogblocks.cli", "view", str(tmp_path / "lab.xdf"), "--port", "0"],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        line = view.stdout.readline()
-        assert line.startswith(f"view of {tmp_path / 'lab.xdf'} at http://127.0.0.1:"), line + view.stderr.read()
-        url = line.split(" at ")[1].split()[0]
-        meta = json.loads(urllib.request.urlopen(url + "meta", timeout=10).read())
-        assert sorted(p["series"] for p in meta["panels"]) == [["Arm"], ["EEG"], ["late"]]
-    finally:
-        view.send_signal(signal.SIGINT)
-        _, err = view.communicate(timeout=20)
-    assert view.returncode == 0, err
+    view = view_server(tmp_path / "lab.xdf")
+    assert view.line.startswith(f"view of {tmp_path / 'lab.xdf'} at http://127.0.0.1:"), view.line
+    assert sorted(p["series"] for p in view.get("meta")["panels"]) == [["Arm"], ["EEG"], ["late"]]
+    code, err = view.stop()
+    assert code == 0, err
     assert "cogblocks view: not shown: stream 'Events': text" in err and "stream 'Glove'" in err
