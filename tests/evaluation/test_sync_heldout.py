@@ -1,4 +1,5 @@
-"""The held-out summary: a motion computer that says which world it found is counted."""
+"""The held-out table: every group handed to ``progress`` as it is done, in the groups' order; a motion computer
+that says which world it found is counted."""
 
 from __future__ import annotations
 
@@ -6,9 +7,9 @@ import dataclasses
 
 import pytest
 
-from cogblocks.data.groups import GroupNoise, SyncGroup
+from cogblocks.data.groups import GroupNoise, SyncGroup, random_groups
 from cogblocks.diagrams.sync import run_sync
-from cogblocks.evaluation.sync_heldout import summarise
+from cogblocks.evaluation.sync_heldout import evaluate_group, heldout_table, summarise
 from cogblocks.sync import GatedMotion, MeanPhaseMotion
 
 GROUP = SyncGroup("ring of 5", 5, 0.8, (2.0, 2.5, 3.0, 3.5, 4.0), 1, 3.0)
@@ -41,3 +42,26 @@ def _natural() -> dict:
         "jumps_per_min": 0.0,
         "peak_speed_ratio": 1.1,
     }
+
+
+def test_progress_sees_every_group_once_and_the_table_keeps_their_order():
+    groups = [dataclasses.replace(g, duration=1.0) for g in random_groups(3, "test", 0)]
+    seen = {1: [], 2: []}
+    tables = {
+        workers: heldout_table(
+            3,
+            groups=groups,
+            policies=["mean"],
+            bound=False,
+            details=True,
+            workers=workers,
+            progress=lambda i, row, w=workers: seen[w].append((i, row)),
+        )
+        for workers in (1, 2)
+    }
+    assert tables[1] == tables[2]
+    for workers, calls in seen.items():
+        assert sorted(i for i, _ in calls) == [0, 1, 2], workers
+        for index, row in calls:  # each group's own row, whatever order the workers finished in
+            assert row == evaluate_group(groups[index], ["mean"], bound=False)
+    assert [row["name"] for row in tables[2]["groups"]] == [g.name for g in groups]
