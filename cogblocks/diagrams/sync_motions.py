@@ -121,9 +121,9 @@ class MotionRegistry(dict):
 #: ``lookahead`` plans 25 ticks ahead on the true model; ``mean`` follows the others' circular mean; ``mpc`` plans the
 #: reference's frequency 3 s ahead on the identified model; ``gated`` is ``replan`` behind a
 #: :class:`~cogblocks.sync.GatedMotion`, which switches to the circular mean once the group's one-tick prediction
-#: errors say it is noisy (people, estimated phases) and reports the world it found. Add an entry to make a policy available to
-#: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line. Retired: ``guard`` and ``pace``
-#: (:attr:`MotionRegistry.retired`), which the planner beats on the held-out groups.
+#: errors say it is noisy (people, estimated phases) and reports the world it found. Add an entry to make a policy
+#: available to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line. Retired: ``guard``
+#: and ``pace`` (:attr:`MotionRegistry.retired`), which the planner beats on the held-out groups.
 MOTIONS = MotionRegistry(
     {
         "dqn": _dqn_motion,
