@@ -167,7 +167,7 @@ def heldout_table(
         also ``"domain"`` and ``"noise"``, each group's noise parameters in order.
     """
     policies = list(MOTIONS) if policies is None else list(policies)
-    unknown = sorted(set(policies) - set(MOTIONS))
+    unknown = [name for name in policies if name not in MOTIONS]
     if unknown:
         raise ValueError(f"unknown policy {unknown[0]!r}: choose from {sorted(MOTIONS)}")
     if workers < 1:
