@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from cogblocks.blocks import Playback
+from cogblocks.blocks.angles import wrap_pi
 from cogblocks.blocks.specs import PHASE
 from cogblocks.data.groups import GroupNoise, SyncGroup
 from cogblocks.diagrams.sync import MOTIONS, pop_sync
@@ -167,3 +168,17 @@ def test_a_gated_planner_stops_deciding_once_the_fallback_plays_for_good():
     assert np.isfinite(seen[: switch + 1]).all() and np.isnan(seen[switch + 1 :]).all()  # one tick after the switch
     planner = motion["model"]
     assert planner.plans and max(start for start, _, _ in planner.plans) <= switch + 100  # nothing decided after it
+
+
+def test_on_a_deterministic_group_gated_is_replan_tick_for_tick():
+    group = dataclasses.replace(GROUP, duration=3.0)
+    traces = {
+        name: Simulator(pop_sync(group, motion=MOTIONS[name](group)), probes=["l2.theta_l2", "l2.theta_l0"]).run(
+            n_steps=301
+        )
+        for name in ("gated", "replan")
+    }
+    altered = np.abs(wrap_pi(traces["replan"]["l2.theta_l2"] - traces["replan"]["l2.theta_l0"]))
+    assert altered.max() > 0.1  # the planner does alter: the comparison is not between two idle runs
+    np.testing.assert_array_equal(traces["gated"]["l2.theta_l2"], traces["replan"]["l2.theta_l2"])
+    np.testing.assert_array_equal(traces["gated"]["r"], traces["replan"]["r"])
