@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -80,7 +81,9 @@ def summarise(rows: list[dict[str, Any]], policies: list[str]) -> list[dict[str,
 
     Naturalness over the groups (:mod:`cogblocks.diagrams.naturalness`): ``max_step_rad`` (the largest per-tick
     change of wrap(θ_L2 − θ_L0) on any group), ``mean_jumps_per_min``, ``jump_free_share`` (share of groups
-    without a jump) and ``max_peak_speed_ratio`` (the largest of the groups' peak phase speed ratios).
+    without a jump) and ``max_peak_speed_ratio`` (the largest of the groups' peak phase speed ratios). A motion
+    computer that reports its world (:class:`~cogblocks.sync.GatedMotion`) adds ``noisy_share``, the share of
+    groups it found noisy.
     """
     summary = []
     for policy in policies:
@@ -100,6 +103,9 @@ def summarise(rows: list[dict[str, Any]], policies: list[str]) -> list[dict[str,
                 **_naturalness_summary(results),
             }
         )
+        worlds = [r["world"] for r in results if "world" in r]
+        if worlds:  # a motion computer that says which world it found (GatedMotion): how often it found noise
+            summary[-1]["noisy_share"] = float(np.mean([w == "noisy" for w in worlds]))
     return summary
 
 
@@ -129,6 +135,7 @@ def heldout_table(
     domain: str = "phase",
     blender: str = DEFAULT_BLENDER,
     batch: bool = False,
+    progress: Callable[[int, dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
     """Evaluate ``policies`` (all of :data:`MOTIONS` by default) on ``n_groups`` groups of ``split`` and ``seed``.
 
@@ -167,6 +174,9 @@ def heldout_table(
         Run the policies that batch (:data:`~cogblocks.diagrams.sync_batch.BATCHED_MOTIONS`) and the runs
         without L2 on batched diagrams, the groups that share a structure together (phase domain; the same
         figures, bit for bit); the other policies and the bounds run group by group.
+    progress : callable, optional
+        ``progress(index, row)`` as each group is done (with workers, in the order they finish), ``row`` as
+        :func:`evaluate_group` returns it: an interrupted caller keeps every group finished so far.
 
     Returns
     -------
@@ -175,7 +185,7 @@ def heldout_table(
         also ``"domain"`` and ``"noise"``, each group's noise parameters in order.
     """
     policies = list(MOTIONS) if policies is None else list(policies)
-    unknown = sorted(set(policies) - set(MOTIONS))
+    unknown = [name for name in policies if name not in MOTIONS]
     if unknown:
         raise ValueError(f"unknown policy {unknown[0]!r}: choose from {sorted(MOTIONS)}")
     if workers < 1:
@@ -188,22 +198,27 @@ def heldout_table(
         if not max_duration > 0:
             raise ValueError(f"max_duration must be positive, got {max_duration}")
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
-    done: list[Any] = [None] * len(groups)
+    ready: list[Any] = [None] * len(groups)  # figures computed on batched diagrams
     if batch and domain == "phase":
         from cogblocks.diagrams.sync_batch import BATCHED_MOTIONS, sync_rows
 
-        done = sync_rows(groups, [p for p in policies if p in BATCHED_MOTIONS], blender)
+        ready = sync_rows(groups, [p for p in policies if p in BATCHED_MOTIONS], blender)
     if workers == 1:
-        rows = [
-            evaluate_group(g, policies, bound, thorough, domain, blender, d) for g, d in zip(groups, done, strict=True)
-        ]
+        done: Iterable[tuple[int, dict[str, Any]]] = (
+            (i, evaluate_group(g, policies, bound, thorough, domain, blender, ready[i])) for i, g in enumerate(groups)
+        )
     else:
         from joblib import Parallel, delayed
 
-        rows = Parallel(n_jobs=workers, backend="loky")(
-            delayed(evaluate_group)(g, policies, bound, thorough, domain, blender, d)
-            for g, d in zip(groups, done, strict=True)
+        done = Parallel(n_jobs=workers, backend="loky", return_as="generator_unordered")(
+            delayed(_indexed)(i, g, policies, bound, thorough, domain, blender, ready[i]) for i, g in enumerate(groups)
         )
+    by_index: dict[int, dict[str, Any]] = {}
+    for index, row in done:
+        by_index[index] = row
+        if progress is not None:
+            progress(index, row)
+    rows = [by_index[i] for i in range(len(groups))]
     table: dict[str, Any] = {"n_groups": len(groups), "seed": seed, "policies": summarise(rows, policies)}
     if any(group.noise is not None for group in groups):
         table["domain"] = domain
@@ -211,6 +226,11 @@ def heldout_table(
     if details:
         table["groups"] = rows
     return table
+
+
+def _indexed(index: int, group: SyncGroup, *args: Any) -> tuple[int, dict[str, Any]]:
+    """:func:`evaluate_group` with the group's index, for results that arrive in the order they finish."""
+    return index, evaluate_group(group, *args)
 
 
 def plot_heldout(table: dict[str, Any], path: str) -> None:

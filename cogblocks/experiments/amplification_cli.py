@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -13,8 +14,29 @@ from cogblocks.cli_options import OUTPUT_FOLDER, SEED, STEP, plot_output, print_
 __all__ = ["add_amplification_parser"]
 
 #: Options that only the whole chain on a library file reads, by their attribute.
-_LIBRARY_ONLY = {"--out": "out", "--quick": "quick", "--seed": "seed", "--label-field": "label_field", "--dt": "dt"}
+_LIBRARY_ONLY = {
+    "--out": "out",
+    "--quick": "quick",
+    "--seed": "seed",
+    "--label-field": "label_field",
+    "--dt": "dt",
+    "--unit": "unit",
+}
+#: Options that only the bundled library's run reads (the whole chain on a file has no step limit).
+_BUNDLED_ONLY = {"--step-limit": "step_limit"}
 _LIBRARY_SUFFIXES = (".mat", ".npz", ".csv")
+
+
+def _step_limit(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a multiple of the human's largest step (> 0), got {text!r}"
+        ) from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a multiple of the human's largest step (> 0), got {text}")
+    return value
 
 
 def _library_file(text: str) -> str:
@@ -43,6 +65,13 @@ def add_amplification_parser(targets: Any, common: Callable[[argparse.ArgumentPa
         help="variant(s) to run (default: all three); 'optimised' is the casadi blending; repeatable",
     )
     amplification.add_argument(
+        "--step-limit",
+        type=_step_limit,
+        metavar="FACTOR",
+        help="limit the altered velocity's per-tick step to FACTOR × the human's largest so far (VelocityStepLimiter; "
+        "1 keeps it within the human's own); default: no limit",
+    )
+    amplification.add_argument(
         "--library", type=_library_file, metavar="FILE", help="run the whole chain on FILE (.mat, .npz, .csv)"
     )
     amplification.add_argument(
@@ -52,6 +81,12 @@ def add_amplification_parser(targets: Any, common: Callable[[argparse.ArgumentPa
     amplification.add_argument("--seed", type=SEED, help="with --library: seed of split and training (default 0)")
     amplification.add_argument("--label-field", metavar="NAME", help="with --library: the fear label's name")
     amplification.add_argument("--dt", type=STEP, metavar="SECONDS", help="with --library: the sampling step")
+    amplification.add_argument(
+        "--unit",
+        choices=("m", "cm", "mm"),
+        help="with --library: the file's length unit (velocities in it per second), converted to mm "
+        "(default: an .npz file's own unit key, mm otherwise)",
+    )
     common(amplification)
     amplification.set_defaults(handler=_run_amplification)
 
@@ -62,6 +97,9 @@ def _percent(x: float | None) -> str:
 
 def _run_amplification(args: argparse.Namespace) -> int:
     if args.library is not None:
+        given = [option for option, value in _BUNDLED_ONLY.items() if getattr(args, value) is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)} applies to the bundled library only, not to --library FILE")
         return _run_amplification_pipeline(args)
     given = [option for option, value in _LIBRARY_ONLY.items() if getattr(args, value) not in (None, False)]
     if given:
@@ -69,8 +107,9 @@ def _run_amplification(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.amplification import PAPER, plot_amplification, run_amplification
 
     variants = ("blend", "blend_rl", "optimised") if args.variant is None else tuple(args.variant)
-    result = run_amplification(variants)
-    result["e_des_0"] = run_amplification(variants, e_des=0)  # the other direction: remove fear
+    result = run_amplification(variants, step_limit=args.step_limit)
+    # the other direction: remove fear
+    result["e_des_0"] = run_amplification(variants, e_des=0, step_limit=args.step_limit)
 
     def judged(row: dict[str, Any]) -> str:
         shares = ", ".join(f"{name} {_percent(share)}" for name, share in row["judges"].items())
@@ -123,6 +162,7 @@ def _run_amplification_pipeline(args: argparse.Namespace) -> int:
         quick=args.quick,
         label_field=args.label_field,
         dt=args.dt,
+        unit=args.unit,
         log=lambda line: print(line, file=sys.stderr, flush=True),
     )
     print_result(report, args.json, _render_pipeline)
@@ -132,7 +172,8 @@ def _run_amplification_pipeline(args: argparse.Namespace) -> int:
 def _render_pipeline(report: dict[str, Any]) -> str:
     library, split = report["library"], report["split"]
     lines = [
-        f"library of {library['n']} movements (dt {library['dt']:g} s), seed {split['seed']}: "
+        f"library of {library['n']} movements (dt {library['dt']:g} s, "
+        f"RMS speed {library['speed_rms_mm_s']:.0f} mm/s), seed {split['seed']}: "
         f"{split['train']} to train, {split['held_out']} held out",
         f"  encoder accuracy on the held-out movements {100 * report['encoder_held_out_accuracy']:.0f} %",
     ]

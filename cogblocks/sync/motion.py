@@ -136,11 +136,12 @@ class MotionComputer(Block):
     -----
     Implementations: :class:`OscillatorMotion` (the deliverable's virtual oscillator, steered by an
     L3 policy), :class:`MeanPhaseMotion`, :class:`~cogblocks.sync.receding.RecedingPlanMotion` (the
-    planner), :class:`~cogblocks.sync.mpc.MPCMotion`, and the shield
-    :class:`~cogblocks.sync.shielded.ShieldedMotion` around an oscillator; ``cogblocks.diagrams.sync.MOTIONS``
-    names their presets. ``MotionComputer(policy, n=..., ...)``, the name's earlier meaning, still builds
-    an :class:`OscillatorMotion`, with a :class:`DeprecationWarning`; ``MotionComputer(n, assisted)`` is a
-    block with the role's ports that holds θ_ref at 0.
+    planner; :func:`~cogblocks.sync.planned.whole_trial_plan` is its one-decision preset),
+    :class:`~cogblocks.sync.mpc.MPCMotion`, and the shield :class:`~cogblocks.sync.shielded.ShieldedMotion`
+    around an oscillator; ``cogblocks.diagrams.sync.MOTIONS`` names their presets.
+    ``MotionComputer(policy, n=..., ...)``, the name's earlier meaning, still builds an :class:`OscillatorMotion`,
+    with a :class:`DeprecationWarning`; ``MotionComputer(n, assisted)`` is a block with the role's ports that
+    holds θ_ref at 0.
 
     Bad data policy: the role's own block ignores its inputs, so NaN or inf in them never reaches
     θ_ref; each implementation states its own policy.
@@ -249,10 +250,9 @@ class MeanPhaseMotion(MotionComputer):
         phases = self.theta.value[:, self.others]
         if math.isfinite(np.add.reduce(phases, axis=None)):  # one cheap check for the whole batch
             cos, sin = np.cos(phases), np.sin(phases)
-        else:
-            finite = np.isfinite(phases)
+        else:  # the non-finite phases are left out
             with np.errstate(invalid="ignore"):
-                cos, sin = np.where(finite, np.cos(phases), 0.0), np.where(finite, np.sin(phases), 0.0)
+                cos, sin = (np.where(np.isfinite(phases), f(phases), 0.0) for f in (np.cos, np.sin))
         c, s = cos.sum(axis=-1), sin.sum(axis=-1)
         theta_ref = np.mod(np.arctan2(s, c), 2.0 * math.pi)
         theta_ref[theta_ref >= 2.0 * math.pi] = 0.0
