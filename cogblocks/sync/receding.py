@@ -40,6 +40,7 @@ from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import DT
 from cogblocks.sync.motion import _IdentifyingMotion
 from cogblocks.sync.planned import checked_sweeps
+from cogblocks.sync.rollouts import stepped
 from cogblocks.sync.whole_run import (
     alteration_rollout,
     identified_tick_model,
@@ -325,10 +326,12 @@ class RecedingPlanMotion(_IdentifyingMotion):
         state = np.asarray(state, dtype=float)
         # ω and K ride in the state of the one tick model, before the blender's memory
         x = np.r_[state[: self.n + 1], omega, gain, state[self.n + 1 :]]
-        for j in range(k, start):  # through the plan in force to the new plan's first tick
-            i = -1 if committed is None else j - committed[2]
-            a = float(committed[0][i]) if committed is not None and 0 <= i < len(committed[0]) else 0.0
-            x = np.asarray(tick(x, min(max(a / x[self.n], -1.0), 1.0))[0], dtype=float).ravel()
+        through = np.zeros(start - k)  # the plan in force's alterations to the new plan's first tick
+        if committed is not None:
+            first = max(k, committed[2])
+            part = committed[0][first - committed[2] : start - committed[2]]
+            through[first - k : first - k + len(part)] = part
+        x = stepped(tick, x, through, self.n)
         n_ticks = stop - start
         roll = rollout_function(tick, self._solvers)
         nothing = float(alteration_rollout(roll, x, np.zeros(n_ticks))[1].mean())

@@ -25,7 +25,16 @@ from cogblocks.data.groups import SyncGroup
 from cogblocks.sync.blending import BlenderParams
 from cogblocks.sync.model import DT
 
-__all__ = ["CHUNK", "JIT_FLAGS", "alteration_rollout", "compiled_rollout", "rollout_function", "rule_rollouts"]
+__all__ = [
+    "CHUNK",
+    "JIT_FLAGS",
+    "alteration_rollout",
+    "compiled_rollout",
+    "memory",
+    "rollout_function",
+    "rule_rollouts",
+    "stepped",
+]
 
 CHUNK = 1000  # ticks per casadi rollout call
 
@@ -55,7 +64,7 @@ def compiled_rollout(tick: ca.Function, chunk: int = CHUNK) -> ca.Function:
             "jit": True,
             "jit_cleanup": False,  # the directory goes: a loaded library needs no file
             "compiler": "shell",
-            "jit_options": {"flags": list(JIT_FLAGS), "directory": directory, "verbose": False},
+            "jit_options": {"flags": list(JIT_FLAGS), "directory": directory, "cleanup": False, "verbose": False},
         }
         try:
             return tick.mapaccum("roll", chunk, options)
@@ -103,6 +112,23 @@ def alteration_rollout(roll: ca.Function, x0: np.ndarray, s: np.ndarray) -> tupl
     return states[:n_ticks], r[:n_ticks]
 
 
+def stepped(tick: ca.Function, x0: np.ndarray, alterations: np.ndarray, n: int) -> np.ndarray:
+    """The state after one ``tick`` per entry of ``alterations`` (rad) from ``x0``: each tick asks for its
+    alteration as the fraction of that tick's λ (``x[n]``), clipped to [−1, 1]."""
+    x = np.array(x0, dtype=float).ravel()
+    after, r, fraction = np.empty_like(x), np.empty(1), np.empty(1)
+    buffer, evaluate = tick.buffer()
+    buffer.set_arg(0, memoryview(x))
+    buffer.set_arg(1, memoryview(fraction))
+    buffer.set_res(0, memoryview(after))
+    buffer.set_res(1, memoryview(r))
+    for a in alterations:
+        fraction[0] = min(max(a / x[n], -1.0), 1.0)
+        evaluate()
+        x[...] = after
+    return x
+
+
 def rule_rollouts(
     group: SyncGroup,
     adjacency: np.ndarray,
@@ -135,17 +161,19 @@ def rule_rollouts(
     triangular, kappa_plus, kappa_minus = params.psi == "triangular", params.kappa_plus, params.kappa_minus
     for k in range(n_ticks):
         z = np.exp(1j * theta)
-        reference = np.where(mean, np.angle(z[:, others].sum(axis=1)), phase0 + freq * (k * DT))
+        others_sum = z[:, others].sum(axis=1)  # np.angle's arctan2, without its Python wrapper
+        reference = np.where(mean, np.arctan2(others_sum.imag, others_sum.real), phase0 + freq * (k * DT))
         l0 = theta[:, i]
         d = np.where(nothing, 0.0, np.mod(reference - l0 + np.pi, _TWO_PI) - np.pi)
         if continuous:
             d = shift + (np.pi - np.mod(np.pi - (d - shift), _TWO_PI))
+        low = -lam
         if hard:
-            a = np.minimum(np.maximum(d, -lam), lam)
+            a = np.minimum(np.maximum(d, low), lam)
         else:
             a = d / (1.0 + abs(d / lam) ** 4.0) ** (1.0 / 4.0)
         if step is not None:
-            a = np.minimum(np.maximum(np.minimum(np.maximum(a, shift - step), shift + step), -lam), lam)
+            a = np.minimum(np.maximum(np.minimum(np.maximum(a, shift - step), shift + step), low), lam)
         shift = a
         z[:, i] = np.exp(1j * (l0 + shift))
         r = np.abs(z.sum(axis=1)) / n
