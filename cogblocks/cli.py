@@ -10,23 +10,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from cogblocks.cli_options import (
-    COUNT,
-    DURATION,
-    PLOT_PATH,
-    POLICY,
-    SEED,
-    STEP,
-    TRACE_PATH,
-    plot_output,
-    print_result,
-    write_output,
-)
-from cogblocks.experiments.amplification_cli import add_amplification_parser
-from cogblocks.experiments.cli import add_sweep_parser
-from cogblocks.experiments.recordings_cli import add_analyse_parser, add_recording_options
-from cogblocks.live.cli import add_live_parser
-
 __all__ = ["main"]
 
 
@@ -34,6 +17,7 @@ __all__ = ["main"]
 
 
 def _run_demo(args: argparse.Namespace) -> int:
+    from cogblocks.cli_options import plot_output, print_result, write_output
     from cogblocks.diagrams.demo import demo_run, plot_demo
 
     result, trace = demo_run(duration=args.duration)
@@ -52,12 +36,14 @@ def _run_demo(args: argparse.Namespace) -> int:
 
 
 def _run_sync(args: argparse.Namespace) -> int:
+    from cogblocks.cli_options import plot_output, write_output
     from cogblocks.diagrams.naturalness import naturalness_text
     from cogblocks.diagrams.sync import DEFAULT_MOTION, DEFAULT_MOTIONS, MOTIONS, plot_sync, sync_table
+    from cogblocks.experiments.heldout_cli import run_sync_heldout
     from cogblocks.experiments.sync import sync_trace
 
     if args.random is not None:  # every policy unless some are named
-        return _run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
+        return run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
     if args.split != "test" or args.no_bound or args.thorough_bound or args.max_duration is not None or args.noise:
         raise ValueError("--split, --no-bound, --thorough-bound, --max-duration and --noise apply to --random N only")
     # the main job: the published comparison and pop_sync's own default motion computer
@@ -108,51 +94,8 @@ def _figure_paths(path: str | None, motions: list[str]) -> dict[str, str]:
     return {m: str(file.with_name(f"{file.stem}-{m}{file.suffix}")) for m in motions}
 
 
-def _run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
-    from cogblocks.diagrams.sync import DEFAULT_MOTION
-    from cogblocks.evaluation.sync_heldout import heldout_table, plot_heldout
-
-    if args.duration is not None or args.save_trace:
-        raise ValueError("--random evaluates each group over its own duration: drop --duration and --save-trace")
-    result = heldout_table(
-        args.random,
-        args.seed,
-        motions,
-        workers=args.workers,
-        blender=args.blender,
-        max_duration=args.max_duration,
-        details=bool(args.plot),
-        split=args.split,
-        bound=not args.no_bound,
-        thorough=args.thorough_bound,
-        noise=args.noise,
-        domain=args.domain,
-    )
-    groups = result.pop("groups", None)
-    held = ("held-out " if args.split == "test" else "") + ("noisy " if args.noise else "")
-
-    def render(r: dict[str, Any]) -> str:
-        lines = [
-            f"{r['n_groups']} {held}random groups ({args.split} split, seed {r['seed']}): change of the mean order "
-            f"parameter with L2 (pop_sync's default policy: {DEFAULT_MOTION})",
-            f"  {'policy':>10}  lowered  mean %   p5 %  worst %  of bound |θ_L2 − θ_L0| rad  max step  jumps/min speed",
-        ]
-        for row in r["policies"]:
-            bound = "–" if row["mean_bound_fraction"] is None else f"{row['mean_bound_fraction']:.2f}"
-            lines.append(
-                f"  {row['policy']:>10}  {100 * row['lowered_share']:5.1f} %  {row['mean_change_pct']:+6.2f} "
-                f"{row['p5_change_pct']:+6.2f}  {row['worst_change_pct']:+7.2f}  {bound:>8}  "
-                f"{row['mean_dev_rad']:.3f} / {row['max_dev_rad']:.3f}    {row['max_step_rad']:.3f} rad  "
-                f"{row['mean_jumps_per_min']:9.1f}  {row['max_peak_speed_ratio']:4.1f}x"
-            )
-        return "\n".join(lines)
-
-    print_result(result, args.json, render)
-    plot_output(args.plot, lambda path: plot_heldout({**result, "groups": groups}, path))
-    return 0
-
-
 def _run_phase3d(args: argparse.Namespace) -> int:
+    from cogblocks.cli_options import plot_output, print_result
     from cogblocks.diagrams.phase3d import phase3d_accuracy, plot_phase3d, run_phase_chain
 
     if not 30.0 <= args.rate <= 240.0:
@@ -181,6 +124,7 @@ def _run_phase3d(args: argparse.Namespace) -> int:
 
 
 def _run_phase1d(args: argparse.Namespace) -> int:
+    from cogblocks.cli_options import plot_output, print_result
     from cogblocks.evaluation.phase1d import EVALUATION_SEEDS, evaluate_grid, plot_grid
 
     if not 1 <= args.signals <= len(EVALUATION_SEEDS) or not args.duration >= 10.0 or args.workers < 1:
@@ -210,6 +154,12 @@ def _run_phase1d(args: argparse.Namespace) -> int:
 
 
 def _build_parser() -> argparse.ArgumentParser:
+    from cogblocks.cli_options import COUNT, DURATION, POLICY, SEED, STEP
+    from cogblocks.experiments.amplification_cli import add_amplification_parser
+    from cogblocks.experiments.cli import add_sweep_parser
+    from cogblocks.experiments.recordings_cli import add_analyse_parser, add_recording_options
+    from cogblocks.live.cli import add_live_parser
+
     parser = argparse.ArgumentParser(
         prog="cogblocks",
         description="Run the cognitive architectures of L1/L2 virtual humans as discrete-time block diagrams.",
@@ -247,8 +197,9 @@ def _build_parser() -> argparse.ArgumentParser:
         action="append",
         type=POLICY,
         metavar="NAME",
-        help="motion computer(s) to run: dqn, dqn_raw, guard, lookahead, mean, mpc, pace, plan, replan "
-        "(default: dqn, lookahead, mean and pop_sync's default, replan; with --random every one); repeatable; "
+        help="motion computer(s) to run: dqn, dqn_raw, lookahead, mean, mpc, plan, replan "
+        "(default: dqn, lookahead, mean and pop_sync's default, replan; with --random every one listed); "
+        "retired, with a warning: guard, pace; repeatable; "
         "with several, --plot FILE draws one figure per policy, FILE-<policy>",
     )
     blenders = "'continuous': the avatar never jumps; 'deliverable': the deliverable's, as in Table 3"
@@ -309,6 +260,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def _common(p: argparse.ArgumentParser, trace: bool = False) -> None:
+    from cogblocks.cli_options import PLOT_PATH, TRACE_PATH
+
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.add_argument(
         "--plot", type=PLOT_PATH, metavar="FILE", help="after the results, save a figure to FILE (png, pdf, svg, ...)"
@@ -327,11 +280,14 @@ def _version() -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``cogblocks`` command."""
-    parser = _build_parser()
-    try:
+    try:  # the command's modules load here: Ctrl-C while they do stops as cleanly as during a run
+        parser = _build_parser()
         args = parser.parse_args(argv)  # every option is checked here, before any simulation
     except SystemExit as exit_:  # --help, --version, or a bad option (argparse printed why)
         return int(exit_.code or 0)
+    except KeyboardInterrupt:
+        print("cogblocks: interrupted by Ctrl-C before the command started", file=sys.stderr)
+        return 130
     handler = getattr(args, "handler", None)
     if handler is None:
         parser.print_help()

@@ -36,12 +36,11 @@ __all__ = [
     "OUTPUT_FOLDER",
     "PLOT_PATH",
     "POLICY",
+    "PORT",
     "SEED",
     "STEP",
     "TRACE_PATH",
 ]
-
-__all__ = ["COUNT", "DURATION", "PLOT_PATH", "POLICY", "SEED", "STEP"]
 
 
 def _option(convert: Callable[[str], Any]) -> Callable[[str], Any]:
@@ -84,6 +83,16 @@ def _duration(text: str) -> float:
     steps = value / BASE_STEP
     if not math.isclose(steps, round(steps), rel_tol=0.0, abs_tol=1e-6):
         raise ValueError(f"{text} s is not a whole number of base steps ({BASE_STEP * 1000:g} ms)")
+    return value
+
+
+def _port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= 65535:  # 0: a free port the system chooses
+        raise ValueError(f"expected a TCP port, 0-65535 (0: any free port), got {text!r}")
     return value
 
 
@@ -281,6 +290,7 @@ COUNT = _option(_integer(1))
 DURATION = _option(_duration)
 STEP = _option(_seconds)
 POLICY = _option(_policy)
+PORT = _option(_port)
 PLOT_PATH = _plot_path
 TRACE_PATH = output_type((".npz", ".parquet"))  # what Trace.save writes
 OUTPUT_FOLDER = output_folder_type

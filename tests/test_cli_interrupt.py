@@ -98,3 +98,53 @@ def test_run_sync_json_interrupted_prints_the_figures_known_so_far(capsys, monke
     result = json.loads(out)
     assert result["interrupted"] is True and result["results"] == [] and 0 < result["r_without"] <= 1
     assert "cogblocks: interrupted by Ctrl-C" in err
+
+
+def test_run_sync_random_reports_each_group_and_keeps_them_on_ctrl_c():
+    """Each finished group reaches stderr at once; a real SIGINT then prints the table of the groups done."""
+    argv = ["run", "sync", "--random", "40", "--policy", "mean", "--no-bound", "--max-duration", "5", "--json"]
+
+    def first_group(process):
+        return process.stderr.readline()
+
+    first, out, err, returncode, _ = _interrupt(argv, signal.SIGINT, first_group)
+    assert first.startswith("group 1/40 done: ") and "r without L2 " in first, first
+    assert returncode == 130
+    assert "Traceback" not in err and "cogblocks: interrupted by Ctrl-C" in err
+    lines = [first, *(line for line in err.splitlines() if line.startswith("group "))]
+    changes = [float(line.rsplit("mean ", 1)[1].split(" %")[0]) for line in lines]
+    table = json.loads(out)
+    assert table["interrupted"] is True and table["n_requested"] == 40
+    assert table["n_groups"] == len(lines) == len(table["groups_done"]) < 40
+    (mean,) = table["policies"]
+    assert abs(mean["mean_change_pct"] - sum(changes) / len(changes)) < 0.01  # the lines print 2 decimals
+
+
+# Sends a real SIGINT to the process the first time ``MODULE`` is imported, then runs the command.
+_SIGINT_ON_IMPORT = """
+import importlib.abc, os, runpy, signal, sys
+
+class SigintOnImport(importlib.abc.MetaPathFinder):
+    module = sys.argv[1]
+
+    def find_spec(self, name, path=None, target=None):
+        if name == self.module:
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+
+sys.meta_path.insert(0, SigintOnImport())
+sys.argv = ["cogblocks", *sys.argv[2:]]
+runpy.run_module("cogblocks.cli", run_name="__main__", alter_sys=True)
+"""
+
+
+@pytest.mark.parametrize("module", ["numpy", "matplotlib", "cogblocks.experiments.amplification_cli"])
+def test_ctrl_c_while_the_command_loads_prints_one_line(module, tmp_path):
+    """numpy loads with the engine, matplotlib while --plot is parsed, the amplification CLI with the parser."""
+    plot = str(tmp_path / "figure.png")
+    argv = [sys.executable, "-c", _SIGINT_ON_IMPORT, module, "run", "sync", "--group", "3", "--plot", plot]
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=TIMEOUT)  # without the fix: a run of minutes
+    assert done.returncode == 130, done.stderr
+    assert done.stderr == "cogblocks: interrupted by Ctrl-C before the command started\n"
+    assert done.stdout == "" and not (tmp_path / "figure.png").exists()

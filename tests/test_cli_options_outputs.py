@@ -71,3 +71,68 @@ def test_a_write_that_fails_at_the_end_goes_to_a_temporary_file(tmp_path):
         spare.unlink()
     assert write_safely(tmp_path / "y.npz", lambda path: np.savez(path, data=data)) == tmp_path / "y.npz"
     assert Path(tmp_path / "y.npz").is_file()
+
+
+# --- every command, every output option ------------------------------------------------------------------------
+
+#: The shortest command line of every command; ``{file}`` is an existing input file.
+_LIVE = ["--in", "a", "--out", "b", "--duration", "1"]
+BASE = {
+    "run sync": ["run", "sync"],
+    "run phase3d": ["run", "phase3d"],
+    "run phase1d": ["run", "phase1d"],
+    "run amplification": ["run", "amplification", "--library", "{file}"],
+    "run demo": ["run", "demo"],
+    "sweep sync": ["sweep", "sync", "--groups", "1"],
+    "analyse group": ["analyse", "group", "{file}", "--markers", "A,B"],
+    **{f"live {name}": ["live", name, *_LIVE] for name in ("phase", "sync", "l1")},
+    **{f"replay {name}": ["replay", "{file}", name] for name in ("phase", "sync", "l1")},
+    "view": ["view", "{file}"],
+}
+#: Options that name files the command writes, and a suffix each accepts.
+OUTPUTS = {"--save": ".npz", "--save-trace": ".npz", "--plot": ".png", "--record": ".xdf", "--out": ".csv"}
+#: Options that name files the command reads.
+INPUTS = {"--library", "--recording"}
+
+
+def _commands():
+    """Every leaf command of the parser with its options."""
+    import argparse
+
+    from cogblocks.cli import _build_parser
+
+    def walk(parser, words):
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        if not subs:
+            yield " ".join(words), parser
+        for action in subs:
+            for name, sub in action.choices.items():
+                yield from walk(sub, [*words, name])
+
+    return dict(walk(_build_parser(), []))
+
+
+def test_every_command_is_in_the_output_check():
+    assert set(_commands()) == set(BASE)
+
+
+@pytest.mark.parametrize("command", sorted(BASE))
+def test_every_output_option_of_every_command_is_checked_before_any_compute(capsys, tmp_path, command):
+    (tmp_path / "input.npz").write_bytes(b"PK")
+    base = [word.format(file=tmp_path / "input.npz") for word in BASE[command]]
+    files = [a for a in _commands()[command]._actions if a.option_strings and a.metavar in ("FILE", "DIR")]
+    assert {a.option_strings[0] for a in files} <= set(OUTPUTS) | INPUTS, "a new file option: OUTPUTS or INPUTS?"
+    for action in files:
+        option = action.option_strings[0]
+        if option in INPUTS:
+            continue
+        suffix = "" if action.metavar == "DIR" else OUTPUTS[option]
+        assert main([*base, option, f"/nonexistent-cogblocks/x{suffix}"]) == 2, (command, option)
+        out, err = capsys.readouterr()
+        assert out == "" and f"argument {option}" in err and "no folder" in err, (command, option, err)
+
+
+@pytest.mark.parametrize("argv", [[*LIVE, "--scope", "70000"], ["view", "x.npz", "--port", "-1"]])
+def test_a_port_out_of_range_is_refused_before_any_compute(capsys, argv):
+    assert main(argv) == 2
+    assert "expected a TCP port, 0-65535" in capsys.readouterr().err

@@ -38,8 +38,8 @@ HISTORY = re.compile(
     re.IGNORECASE,
 )
 
-#: Modules of the sync motion computers, rewritten on another branch (issue 32's sync half): their history goes there.
-HISTORY_PENDING = {"cogblocks/sync/guarded.py"}
+#: Modules whose history text is still to be moved to the changelog (none left).
+HISTORY_PENDING: set[str] = set()
 
 
 def history_lines(text: str) -> list[int]:

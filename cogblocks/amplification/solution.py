@@ -6,7 +6,6 @@ import hashlib
 import os
 import tempfile
 import warnings
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import torch
 from cogblocks.amplification.encoder import CLIP_HIGH, REST_SPEED, EncoderNet, resampling_matrix
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.sim.params import finite_number, one_of, positive_int
+from cogblocks.sim.reading import FileFormatError, open_npz
 
 __all__ = [
     "SolutionTable",
@@ -199,14 +199,15 @@ def _read_cache(path: Path, key: str, shape: tuple[int, int]) -> np.ndarray | No
     if not path.exists():
         return None
     try:
-        with np.load(path, allow_pickle=False) as cached:
+        with open_npz(path, "w̃ cache") as cached:
             if str(cached["key"]) != key:  # the first 20 hex digits of another key: rebuilt, not an error
                 return None
             values = cached["values"]
         if values.shape != shape or not np.all((values >= 0.0) & (values <= 1.0)):
-            raise ValueError(f"values of shape {values.shape} outside [0, 1] or not {shape}")
-    except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile) as error:
-        warnings.warn(f"{path}: corrupt w̃ cache file ({type(error).__name__}: {error}); rebuilding it", stacklevel=3)
+            raise FileFormatError(f"values of shape {values.shape} outside [0, 1] or not {shape}")
+    except (OSError, FileFormatError) as error:
+        why = str(error).removeprefix(f"{path}: ")
+        warnings.warn(f"{path}: corrupt w̃ cache file ({why}); rebuilding it", stacklevel=3)
         return None
     return values
 

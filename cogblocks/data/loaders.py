@@ -107,8 +107,9 @@ def load_velocity_data_mat(
     scale = to_mm(unit, "load_velocity_data_mat: unit")
     try:
         content = scipy.io.loadmat(file, squeeze_me=True, struct_as_record=False)
-    except (ValueError, TypeError, OSError, NotImplementedError) as error:
-        raise DataFormatError(f"{file}: not a readable MATLAB file ({error})") from error
+    except Exception as error:  # scipy raises whatever its parser met (IndexError, zlib.error, MatReadError, ...)
+        why = unreadable(error) or type(error).__name__
+        raise DataFormatError(f"{file}: not a readable MATLAB file ({why})") from None
     if "VelocityData" not in content:
         raise DataFormatError(f"{file}: missing variable 'VelocityData'")
     data = content["VelocityData"]

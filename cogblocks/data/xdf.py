@@ -12,24 +12,23 @@ Each channel's ``unit`` (``desc/channels/channel/unit``: m, cm, mm, or spelled o
 mm; a channel that declares none takes ``unit=`` and, if that is not given either, is taken as mm
 with a warning. Every stream is interpolated onto one grid (``t = 0`` when the last stream has
 started), gaps left NaN. String streams (type ``Markers``) give the events, e.g. the start of a
-condition. :func:`write_xdf` writes such a file, for tests, examples and synthetic sessions.
+condition. :func:`~cogblocks.data.xdf_write.write_xdf` writes such a file (re-exported here).
 """
 
 from __future__ import annotations
 
 import os
 import re
-import struct
 import warnings
 from collections.abc import Sequence
 from typing import Any
-from xml.sax.saxutils import escape
 
 import numpy as np
 
 from cogblocks.data.formats import DataFormatError, existing_file
 from cogblocks.data.markers import MarkerRecording
 from cogblocks.data.units import to_mm
+from cogblocks.data.xdf_write import write_xdf
 from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["load_xdf_markers", "write_xdf"]
@@ -111,71 +110,6 @@ def load_xdf_markers(
         points[:, k] = single.on_grid(grid)[:, 0]
     shifted = [(label, time - start) for label, time in events]
     return MarkerRecording(points, grid - start, 1.0 / dt, tuple(names), shifted, str(file))
-
-
-def write_xdf(
-    path: str | os.PathLike,
-    streams: Sequence[dict[str, Any]],
-) -> None:
-    """Write streams to an XDF file that pyxdf reads back.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The file to write.
-    streams : sequence of dict
-        Each with ``name``, ``time_stamps`` (n,) in s and ``time_series``: an (n, channels) float
-        array, or a list of strings for a marker stream (type ``Markers``). Optional: ``type``,
-        ``labels`` (one per channel), ``unit`` (one for every channel), ``srate`` (nominal rate,
-        0 for irregular).
-    """
-    chunks = [_chunk(1, b'<?xml version="1.0"?><info><version>1.0</version></info>')]
-    for sid, s in enumerate(streams, start=1):
-        stamps = np.asarray(s["time_stamps"], dtype=np.float64)
-        strings = not isinstance(s["time_series"], np.ndarray)
-        values = s["time_series"] if strings else np.asarray(s["time_series"], dtype=np.float64)
-        n_channels = 1 if strings else values.shape[1]
-        labels = s.get("labels") or [f"ch{c}" for c in range(n_channels)]
-        unit = s.get("unit")
-        channels = "".join(
-            f"<channel><label>{escape(label)}</label>" + (f"<unit>{escape(unit)}</unit>" if unit else "") + "</channel>"
-            for label in labels
-        )
-        header = (
-            f'<?xml version="1.0"?><info><name>{escape(s["name"])}</name>'
-            f"<type>{escape(s.get('type', 'Markers' if strings else 'MoCap'))}</type>"
-            f"<channel_count>{n_channels}</channel_count><nominal_srate>{s.get('srate', 0)}</nominal_srate>"
-            f"<channel_format>{'string' if strings else 'double64'}</channel_format>"
-            f"<desc><channels>{channels}</channels></desc></info>"
-        )
-        chunks.append(_chunk(2, struct.pack("<I", sid) + header.encode()))
-        body = bytearray(struct.pack("<I", sid) + _varlen(len(stamps)))
-        for k, stamp in enumerate(stamps):
-            body += b"\x08" + struct.pack("<d", stamp)
-            if strings:
-                text = str(values[k]).encode()
-                body += _varlen(len(text)) + text
-            else:
-                body += values[k].astype("<f8").tobytes()
-        chunks.append(_chunk(3, bytes(body)))
-        for when in (stamps[:1], stamps[-1:]):  # a zero clock offset at each end: one clock segment
-            chunks += [_chunk(4, struct.pack("<Idd", sid, float(w), 0.0)) for w in when]
-        footer = (
-            f'<?xml version="1.0"?><info><first_timestamp>{stamps[0] if len(stamps) else 0}</first_timestamp>'
-            f"<last_timestamp>{stamps[-1] if len(stamps) else 0}</last_timestamp>"
-            f"<sample_count>{len(stamps)}</sample_count></info>"
-        )
-        chunks.append(_chunk(6, struct.pack("<I", sid) + footer.encode()))
-    with open(path, "wb") as stream:
-        stream.write(b"XDF:" + b"".join(chunks))
-
-
-def _varlen(n: int) -> bytes:
-    return b"\x01" + struct.pack("<B", n) if n < 256 else b"\x04" + struct.pack("<I", n)
-
-
-def _chunk(tag: int, content: bytes) -> bytes:
-    return _varlen(len(content) + 2) + struct.pack("<H", tag) + content
 
 
 def _first(value: Any, default: str) -> str:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -120,6 +121,7 @@ def heldout_table(
     noise: bool = False,
     domain: str = "phase",
     blender: str = DEFAULT_BLENDER,
+    progress: Callable[[int, dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
     """Evaluate ``policies`` (all of :data:`MOTIONS` by default) on ``n_groups`` groups of ``split`` and ``seed``.
 
@@ -154,6 +156,9 @@ def heldout_table(
         Where the policies read the phases (see :func:`~cogblocks.diagrams.sync.pop_sync`).
     blender : {"continuous", "deliverable"}
         The blender of every closed loop (:func:`~cogblocks.diagrams.sync.pop_sync`'s); the bound is the deliverable's.
+    progress : callable, optional
+        ``progress(index, row)`` as each group is done (with workers, in the order they finish), ``row`` as
+        :func:`evaluate_group` returns it: an interrupted caller keeps every group finished so far.
 
     Returns
     -------
@@ -162,7 +167,7 @@ def heldout_table(
         also ``"domain"`` and ``"noise"``, each group's noise parameters in order.
     """
     policies = list(MOTIONS) if policies is None else list(policies)
-    unknown = sorted(set(policies) - set(MOTIONS))
+    unknown = [name for name in policies if name not in MOTIONS]
     if unknown:
         raise ValueError(f"unknown policy {unknown[0]!r}: choose from {sorted(MOTIONS)}")
     if workers < 1:
@@ -176,13 +181,21 @@ def heldout_table(
             raise ValueError(f"max_duration must be positive, got {max_duration}")
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
     if workers == 1:
-        rows = [evaluate_group(group, policies, bound, thorough, domain, blender) for group in groups]
+        done: Iterable[tuple[int, dict[str, Any]]] = (
+            (i, evaluate_group(g, policies, bound, thorough, domain, blender)) for i, g in enumerate(groups)
+        )
     else:
         from joblib import Parallel, delayed
 
-        rows = Parallel(n_jobs=workers, backend="loky")(
-            delayed(evaluate_group)(g, policies, bound, thorough, domain, blender) for g in groups
+        done = Parallel(n_jobs=workers, backend="loky", return_as="generator_unordered")(
+            delayed(_indexed)(i, g, policies, bound, thorough, domain, blender) for i, g in enumerate(groups)
         )
+    by_index: dict[int, dict[str, Any]] = {}
+    for index, row in done:
+        by_index[index] = row
+        if progress is not None:
+            progress(index, row)
+    rows = [by_index[i] for i in range(len(groups))]
     table: dict[str, Any] = {"n_groups": len(groups), "seed": seed, "policies": summarise(rows, policies)}
     if any(group.noise is not None for group in groups):
         table["domain"] = domain
@@ -190,6 +203,11 @@ def heldout_table(
     if details:
         table["groups"] = rows
     return table
+
+
+def _indexed(index: int, group: SyncGroup, *args: Any) -> tuple[int, dict[str, Any]]:
+    """:func:`evaluate_group` with the group's index, for results that arrive in the order they finish."""
+    return index, evaluate_group(group, *args)
 
 
 def plot_heldout(table: dict[str, Any], path: str) -> None:

@@ -13,7 +13,14 @@ from cogblocks.cli_options import OUTPUT_FOLDER, SEED, STEP, plot_output, print_
 __all__ = ["add_amplification_parser"]
 
 #: Options that only the whole chain on a library file reads, by their attribute.
-_LIBRARY_ONLY = {"--out": "out", "--quick": "quick", "--seed": "seed", "--label-field": "label_field", "--dt": "dt"}
+_LIBRARY_ONLY = {
+    "--out": "out",
+    "--quick": "quick",
+    "--seed": "seed",
+    "--label-field": "label_field",
+    "--dt": "dt",
+    "--unit": "unit",
+}
 _LIBRARY_SUFFIXES = (".mat", ".npz", ".csv")
 
 
@@ -52,6 +59,12 @@ def add_amplification_parser(targets: Any, common: Callable[[argparse.ArgumentPa
     amplification.add_argument("--seed", type=SEED, help="with --library: seed of split and training (default 0)")
     amplification.add_argument("--label-field", metavar="NAME", help="with --library: the fear label's name")
     amplification.add_argument("--dt", type=STEP, metavar="SECONDS", help="with --library: the sampling step")
+    amplification.add_argument(
+        "--unit",
+        choices=("m", "cm", "mm"),
+        help="with --library: the file's length unit (velocities in it per second), converted to mm "
+        "(default: an .npz file's own unit key, mm otherwise)",
+    )
     common(amplification)
     amplification.set_defaults(handler=_run_amplification)
 
@@ -123,6 +136,7 @@ def _run_amplification_pipeline(args: argparse.Namespace) -> int:
         quick=args.quick,
         label_field=args.label_field,
         dt=args.dt,
+        unit=args.unit,
         log=lambda line: print(line, file=sys.stderr, flush=True),
     )
     print_result(report, args.json, _render_pipeline)
@@ -132,7 +146,8 @@ def _run_amplification_pipeline(args: argparse.Namespace) -> int:
 def _render_pipeline(report: dict[str, Any]) -> str:
     library, split = report["library"], report["split"]
     lines = [
-        f"library of {library['n']} movements (dt {library['dt']:g} s), seed {split['seed']}: "
+        f"library of {library['n']} movements (dt {library['dt']:g} s, "
+        f"RMS speed {library['speed_rms_mm_s']:.0f} mm/s), seed {split['seed']}: "
         f"{split['train']} to train, {split['held_out']} held out",
         f"  encoder accuracy on the held-out movements {100 * report['encoder_held_out_accuracy']:.0f} %",
     ]

@@ -113,7 +113,7 @@ def compare_blenders(
 
     Returns ``{"summary": [...], "groups": [...]}``; ``max_duration`` cuts every group (a quick check only).
     """
-    unknown = sorted(set(policies) - set(MOTIONS))
+    unknown = [name for name in policies if name not in MOTIONS]
     if unknown:
         raise ValueError(f"unknown policy {unknown[0]!r}: choose from {sorted(MOTIONS)}")
     for spec in blenders:

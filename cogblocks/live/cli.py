@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from cogblocks.cli_options import POLICY, STEP, output_type, write_safely
+from cogblocks.cli_options import POLICY, PORT, STEP, output_type, write_safely
 from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["add_live_parser"]
@@ -46,10 +46,10 @@ def _print(args: argparse.Namespace, report: Any, what: str) -> None:
 
 def _run_live(args: argparse.Namespace) -> int:
     try:
+        from cogblocks.data.xdf_write import RecordingError
         from cogblocks.live.ready import live_diagram
         from cogblocks.live.runner import run_realtime, save_report
-        from cogblocks.live.session import enable_recording, write_session
-        from cogblocks.live.xdf import RecordingError
+        from cogblocks.live.session import SessionRecorder
     except ImportError as exc:
         raise ValueError(f'cogblocks live needs the live extra: pip install -e ".[live]" ({exc})') from None
     options = _options(args)
@@ -57,10 +57,10 @@ def _run_live(args: argparse.Namespace) -> int:
         compiled = live_diagram(options).compile(DT)
     except KeyboardInterrupt:
         return 130
-    if args.record:
-        enable_recording(compiled)
-    scope = None
+    recorder = scope = report = None
     try:
+        if args.record:  # written as the run goes: a crash loses half a second at most
+            recorder = SessionRecorder(args.record, compiled, options)
         if args.scope is not None:
             from cogblocks.live.scope import Scope
 
@@ -73,6 +73,7 @@ def _run_live(args: argparse.Namespace) -> int:
             record=bool(args.save),
             record_raw=bool(args.save),
             scope=scope,
+            recorder=recorder,
         )
     finally:
         for block in compiled.blocks.values():
@@ -80,10 +81,15 @@ def _run_live(args: argparse.Namespace) -> int:
                 block.close()
         if scope is not None:
             scope.close()
+        if recorder is not None and report is None:  # the run failed: what it recorded stays in the file
+            try:
+                recorder.close(interrupted=True)
+            except RecordingError as exc:
+                print(f"cogblocks: error: {exc}", file=sys.stderr)
     code = 0
-    if args.record:
+    if recorder is not None:
         try:
-            write_session(args.record, compiled, report, options)
+            recorder.close(report.interrupted)
         except RecordingError as exc:
             print(f"cogblocks: error: {exc}", file=sys.stderr)
             code = 1
@@ -131,7 +137,10 @@ def _run_view(args: argparse.Namespace) -> int:
     from cogblocks.live.scope import ScopeView
     from cogblocks.live.view import load_run
 
-    t, signals, units, late = load_run(args.file)
+    skipped: list[str] = []
+    t, signals, units, late = load_run(args.file, skipped)
+    for line in skipped:  # what the page cannot draw, named
+        print(f"cogblocks view: not shown: {line}", file=sys.stderr, flush=True)
     scope = ScopeView(t, signals, units, late, port=args.port, title=f"cogblocks view {args.file}")
     print(f"view of {args.file} at {scope.url} (Ctrl-C stops)", flush=True)
     try:
@@ -207,7 +216,7 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
             "--scope",
             nargs="?",
             const=SCOPE_PORT,
-            type=int,
+            type=PORT,
             metavar="PORT",
             help=f"serve a page that plots the run on http://127.0.0.1:PORT/ (default port {SCOPE_PORT})",
         )
@@ -230,8 +239,8 @@ def add_live_parser(commands: argparse._SubParsersAction) -> None:
         p.set_defaults(handler=_run_replay)
 
     view = commands.add_parser(
-        "view", help="show a saved run (.npz from --save) or a recorded session (.xdf) in the browser, with a slider"
+        "view", help="show a saved run (.npz from --save), a session or any XDF file (LabRecorder's) in the browser"
     )
-    view.add_argument("file", metavar="TRACE", help="a trace saved by --save (.npz) or a session (.xdf)")
-    view.add_argument("--port", type=int, default=SCOPE_PORT, help=f"port on 127.0.0.1 (default {SCOPE_PORT})")
+    view.add_argument("file", metavar="TRACE", help="a trace saved by --save (.npz), a session or any XDF file (.xdf)")
+    view.add_argument("--port", type=PORT, default=SCOPE_PORT, help=f"port on 127.0.0.1 (default {SCOPE_PORT})")
     view.set_defaults(handler=_run_view)

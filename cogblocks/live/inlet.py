@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import math
 import socket
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 import pylsl
 
-from cogblocks.live.timed import StreamHeader, TimedInlet
+from cogblocks.live.timed import InletOptions, StreamHeader, TimedInlet
 from cogblocks.sim.params import finite_number
 
 __all__ = ["LSLInlet", "stream_name_arg"]
@@ -137,37 +137,18 @@ class LSLInlet(TimedInlet):
         name: str | None = None,
         *,
         stream_type: str | None = None,
-        shape: tuple[int, ...] | int = (),
-        unit: str = "1",
-        source_unit: str | None = None,
-        wrapped: bool = False,
-        mode: str = "latest",
-        lag: float = 0.02,
-        hold: float = 0.05,
         timeout: float = 5.0,
-        record: bool = False,
-        period: float | None = None,
+        **options: Unpack[InletOptions],
     ) -> None:
         owner = type(self).__name__
         stream_name = stream_name_arg(owner, "name", name, optional=True)
         stream_type = stream_name_arg(owner, "stream_type", stream_type, optional=True)
         if name is None and stream_type is None:
             raise ValueError(f"{owner}: give the stream's name, its stream_type or both")
-        super().__init__(
-            shape=shape,
-            unit=unit,
-            wrapped=wrapped,
-            mode=mode,
-            lag=lag,
-            hold=hold,
-            source_unit=source_unit,
-            record=record,
-            period=period,
-        )
+        super().__init__(**options)
         self.stream_name = stream_name
         self.stream_type = stream_type
         self.timeout = finite_number(self, "timeout", timeout, low=0.0, low_open=True)
-        self.inlet: pylsl.StreamInlet | None = None
         self._ticks = 0
         self._remote = False
 
@@ -217,17 +198,16 @@ class LSLInlet(TimedInlet):
             except pylsl.util.TimeoutError:
                 pass  # a peer that answers no clock queries: take its clock as ours
         self._ticks = 0
-        self.inlet = inlet
+        self._handle = inlet
         return header
 
-    def close(self) -> None:
-        """Close the stream (the block cannot run afterwards)."""
-        if self.inlet is not None:
-            self.inlet.close_stream()
-            self.inlet = None
+    @property
+    def inlet(self) -> pylsl.StreamInlet | None:
+        """The open LSL inlet (None before compiling and once closed)."""
+        return self._handle
 
-    def _is_open(self) -> bool:
-        return self.inlet is not None
+    def _release(self, handle: pylsl.StreamInlet) -> None:
+        handle.close_stream()
 
     def _clock(self) -> float:
         return pylsl.local_clock()

@@ -5,12 +5,13 @@ from __future__ import annotations
 import collections
 import threading
 import time
+from typing import Unpack
 
 import numpy as np
 from pythonosc.dispatcher import Dispatcher
 from pythonosc.osc_server import BlockingOSCUDPServer
 
-from cogblocks.live.timed import StreamHeader, TimedInlet
+from cogblocks.live.timed import InletOptions, StreamHeader, TimedInlet
 
 __all__ = ["OSCReceiver"]
 
@@ -72,15 +73,7 @@ class OSCReceiver(TimedInlet):
         port: int = 0,
         *,
         host: str = "127.0.0.1",
-        shape: tuple[int, ...] | int = (),
-        unit: str = "1",
-        source_unit: str | None = None,
-        wrapped: bool = False,
-        mode: str = "latest",
-        lag: float = 0.02,
-        hold: float = 0.05,
-        record: bool = False,
-        period: float | None = None,
+        **options: Unpack[InletOptions],
     ) -> None:
         if not isinstance(address, str) or not address.startswith("/") or any(c in address for c in " #*?[]{}"):
             raise ValueError(
@@ -90,23 +83,12 @@ class OSCReceiver(TimedInlet):
             raise ValueError(f"OSCReceiver: port must be an integer in [0, 65535], got {port!r}")
         if not isinstance(host, str) or not host:
             raise ValueError(f"OSCReceiver: host must be a non-empty string, got {host!r}")
-        super().__init__(
-            shape=shape,
-            unit=unit,
-            wrapped=wrapped,
-            mode=mode,
-            lag=lag,
-            hold=hold,
-            source_unit=source_unit,
-            record=record,
-            period=period,
-        )
+        super().__init__(**options)
         self.address = address
         self.port = port
         self.host = host
         self.rejected = 0
         self._queue: collections.deque = collections.deque(maxlen=_QUEUE)
-        self._server: BlockingOSCUDPServer | None = None
         self._thread: threading.Thread | None = None
 
     def _on_message(self, address: str, *args: object) -> None:
@@ -134,25 +116,20 @@ class OSCReceiver(TimedInlet):
         dispatcher = Dispatcher()
         dispatcher.map(self.address, self._on_message)
         try:
-            self._server = BlockingOSCUDPServer((self.host, self.port), dispatcher)
+            server = BlockingOSCUDPServer((self.host, self.port), dispatcher)
         except OSError as exc:
             raise self._fail(f"cannot listen on {self.host}:{self.port} for OSC ({exc})") from None
-        self.port = self._server.server_address[1]
+        self.port = server.server_address[1]
         header.source_id = f"osc://{self.host}:{self.port}{self.address}"
-        self._thread = threading.Thread(target=self._server.serve_forever, name=f"osc {self.address}", daemon=True)
+        self._thread = threading.Thread(target=server.serve_forever, name=f"osc {self.address}", daemon=True)
         self._thread.start()
+        self._handle = server
         return header
 
-    def close(self) -> None:
-        """Stop the server (the block cannot run afterwards)."""
-        if self._server is not None:
-            self._server.shutdown()
-            self._server.server_close()
-            self._thread.join()
-            self._server = None
-
-    def _is_open(self) -> bool:
-        return self._server is not None
+    def _release(self, handle: BlockingOSCUDPServer) -> None:
+        handle.shutdown()
+        handle.server_close()
+        self._thread.join()
 
     def _clock(self) -> float:
         return time.monotonic()

@@ -17,7 +17,11 @@ from cogblocks.live.session import RUN_STREAM
 from cogblocks.live.timed import StreamHeader, TimedInlet
 from cogblocks.sim import Diagram
 
-__all__ = ["RecordedStream", "Session", "load_session", "replay_session"]
+__all__ = ["NotASession", "RecordedStream", "Session", "load_session", "replay_session"]
+
+
+class NotASession(ValueError):
+    """An XDF file that pyxdf reads but no ``cogblocks live --record`` wrote (a LabRecorder file)."""
 
 
 def _desc(stream: dict[str, Any]) -> dict[str, Any]:
@@ -160,7 +164,7 @@ def load_session(path: str | os.PathLike) -> Session:
         raise ValueError(f"{path}: not a readable XDF file ({type(exc).__name__}: {exc})") from None
     run = [s for s in streams if s["info"]["name"][0] == RUN_STREAM]
     if not run:
-        raise ValueError(f"{path}: not a cogblocks session (no {RUN_STREAM!r} stream; record with --record)")
+        raise NotASession(f"{path}: not a cogblocks session (no {RUN_STREAM!r} stream; record with --record)")
     meta = _cogblocks(run[0])
     return Session(path, streams, float(meta.get("dt", "0.01")), json.loads(meta.get("options") or "{}"))
 
@@ -181,7 +185,8 @@ def replay_session(diagram: Diagram, session: Session, *, record: bool = True) -
         if isinstance(block, LSLOutlet):
             block.offline = True
     compiled = diagram.compile(session.dt)
-    n = session.ticks()
+    # a run killed mid-write may have recorded a tick's figures without its last clocks: the ticks all hold
+    n = min([session.ticks(), *(len(b._source.ticks) for b in inlets.values())])
     blocks = list(compiled.blocks.values())
     ages = [b.age_ms.value for b in inlets.values()]
     tick_s = np.zeros(n)
@@ -195,7 +200,7 @@ def replay_session(diagram: Diagram, session: Session, *, record: bool = True) -
                 max_age = float(age)
         if record:
             rows.append(out)
-    figures = session.run_figures()
+    figures = {key: value[:n] for key, value in session.run_figures().items()}
     return RealtimeReport(
         ticks=n,
         late_ticks=int(figures["late"].sum()),

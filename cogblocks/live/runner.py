@@ -96,6 +96,7 @@ def run_realtime(
     record_raw: bool = False,
     save: str | Path | None = None,
     scope: Any = None,
+    recorder: Any = None,
 ) -> RealtimeReport:
     """Run a compiled diagram in real time: tick ``k`` starts at ``start + k / rate`` on ``perf_counter``.
 
@@ -119,6 +120,9 @@ def run_realtime(
         Write the report to this ``.npz`` file when the run ends (see :func:`save_report`).
     scope : Scope, optional
         A :class:`~cogblocks.live.scope.Scope` that each tick's outputs are pushed to (its page draws them).
+    recorder : SessionRecorder, optional
+        A :class:`~cogblocks.live.session.SessionRecorder`, started here and told of every tick; it
+        writes the session file as the run goes (the caller closes it).
 
     Returns
     -------
@@ -152,6 +156,8 @@ def run_realtime(
     late = overruns = done = 0
     max_age = -np.inf
     interrupted = False
+    if recorder is not None:
+        recorder.start()
     start = time.perf_counter()
     try:
         for i in range(n):
@@ -166,6 +172,8 @@ def run_realtime(
             overruns += ended - began > period
             if scope is not None:
                 scope.push((k0 + i) * compiled.dt, out, is_late)
+            if recorder is not None:
+                recorder.ticked(1e3 * tick_s[i], 1e3 * start_s[i], is_late)
             for age in ages:
                 if np.isfinite(age) and age > max_age:
                     max_age = float(age)

@@ -5,16 +5,16 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
+from cogblocks.data.units import length_factor
 from cogblocks.live.resample import Resampler
-from cogblocks.live.units import length_factor
 from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number, flag, one_of, shape_arg, unit_arg, wrapped_arg
 
-__all__ = ["StreamHeader", "TimedInlet"]
+__all__ = ["InletOptions", "StreamHeader", "TimedInlet"]
 
 
 @dataclass
@@ -35,6 +35,20 @@ class StreamHeader:
     hostname: str = ""
 
 
+class InletOptions(TypedDict, total=False):
+    """The keyword parameters every :class:`TimedInlet` takes (see :class:`~cogblocks.live.LSLInlet`)."""
+
+    shape: tuple[int, ...] | int
+    unit: str
+    source_unit: str | None
+    wrapped: bool
+    mode: str
+    lag: float
+    hold: float
+    record: bool
+    period: float | None
+
+
 class TimedInlet(Block):
     """Samples with time stamps in, one value per tick out, through a :class:`~cogblocks.live.resample.Resampler`.
 
@@ -48,15 +62,15 @@ class TimedInlet(Block):
     def __init__(
         self,
         *,
-        shape: tuple[int, ...] | int,
-        unit: str,
-        wrapped: bool,
-        mode: str,
-        lag: float,
-        hold: float,
-        source_unit: str | None,
-        record: bool,
-        period: float | None,
+        shape: tuple[int, ...] | int = (),
+        unit: str = "1",
+        source_unit: str | None = None,
+        wrapped: bool = False,
+        mode: str = "latest",
+        lag: float = 0.02,
+        hold: float = 0.05,
+        record: bool = False,
+        period: float | None = None,
     ) -> None:
         super().__init__(period=period)
         owner = type(self).__name__
@@ -84,6 +98,8 @@ class TimedInlet(Block):
         self.scale = np.ones(self.channels)
         self.resampler: Resampler | None = None
         self._source: Any = None
+        self._handle: Any = None  # the open stream a subclass keeps (an LSL inlet, an OSC server), for close()
+        self._closed = False
         self._log: list[tuple[np.ndarray, np.ndarray]] = []  # raw stamps and raw values, as received
         self._ticks_log: list[tuple[float, float, int, float]] = []  # started, now, samples arrived, correction
         # (collection time on the stream's clock, correction) each time it changed, as LabRecorder writes them
@@ -91,7 +107,10 @@ class TimedInlet(Block):
 
     # -- what a subclass provides ----------------------------------------------
     def _open(self) -> StreamHeader:  # pragma: no cover - abstract
-        """Find and open the stream; check it (``scale = _check_stream(header)``) before opening; its header."""
+        """Find and open the stream; check it (``scale = _check_stream(header)``) before opening; its header.
+
+        What :meth:`close` must release (an inlet, a server) goes in ``_handle``, released by ``_release``.
+        """
         raise NotImplementedError
 
     def _receive(self) -> list[tuple[np.ndarray, np.ndarray]]:  # pragma: no cover - abstract
@@ -103,8 +122,15 @@ class TimedInlet(Block):
     def _refresh_correction(self) -> None:
         """Re-measure ``correction`` if the stream runs on another clock (default: it does not)."""
 
+    def _release(self, handle: Any) -> None:
+        """Close the open stream ``handle`` (what ``_open`` kept in ``_handle``)."""
+
     def close(self) -> None:
         """Close the stream (the block cannot run afterwards)."""
+        if self._handle is not None:
+            self._release(self._handle)
+            self._handle = None
+        self._closed = True
 
     # -- replay ------------------------------------------------------------------
     def replay_from(self, source: Any) -> None:
@@ -133,6 +159,7 @@ class TimedInlet(Block):
             self.scale = self._check_stream(self.header)
         else:
             self.header = self._open()  # which checks the stream and sets ``scale`` before opening it
+            self._closed = False
 
     def _check_stream(self, info: StreamHeader) -> np.ndarray:
         """The factor per channel from the stream's units to the port's, or raise naming the stream."""
@@ -193,7 +220,7 @@ class TimedInlet(Block):
         self.y.value.flat[:] = value  # a sample, or a NaN for every channel
 
     def _is_open(self) -> bool:
-        return True
+        return not self._closed
 
     def _take(self, chunks: list[tuple[np.ndarray, np.ndarray]]) -> int:
         arrived = 0

@@ -11,6 +11,7 @@ through it)."""
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import asdict, replace
 from typing import Any
 
@@ -18,20 +19,27 @@ from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.blocks.specs import PHASE
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import finite_number, one_of
-from cogblocks.sync.blending import BlenderParams, alteration, lam_inf, lam_step
+from cogblocks.sync.blending import DELIVERABLE, BlenderParams, alteration, lam_inf, lam_step
 from cogblocks.sync.stability import check_blender
 
-__all__ = ["Blender", "DELIVERABLE_BLENDER"]
+__all__ = ["Blender"]
 
-#: The L2 parameters of section 5.2.3.2 (κ⁻ = 2.5 decrease, κ⁺ = 1 increase; see the notes), as a mapping of
-#: :class:`~cogblocks.sync.blending.BlenderParams`' defaults.
-DELIVERABLE_BLENDER = {
-    "lam_min": BlenderParams().lam_min,
-    "lam_max": BlenderParams().lam_max,
-    "e_max": BlenderParams().e_max,
-    "kappa_plus": BlenderParams().kappa_plus,
-    "kappa_minus": BlenderParams().kappa_minus,
-}
+
+def __getattr__(name: str) -> Any:
+    if name == "DELIVERABLE_BLENDER":
+        warnings.warn(
+            "DELIVERABLE_BLENDER is deprecated: use cogblocks.sync.DELIVERABLE, a BlenderParams "
+            "(dataclasses.asdict(DELIVERABLE) gives its fields as a dict)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return {k: getattr(DELIVERABLE, k) for k in ("lam_min", "lam_max", "e_max", "kappa_plus", "kappa_minus")}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _given(value: Any, default: Any) -> bool:
+    """Whether a keyword was given beside ``params``: a value other than its default (False is not 0 here)."""
+    return value is not default if isinstance(default, bool) or default is None else value != default
 
 
 def _wrap_pi(x: float) -> float:
@@ -86,7 +94,7 @@ class Blender(Block):
     both rates and a stable equilibrium at the limit λ*
     (:func:`cogblocks.sync.check_blender`), or compiling fails;
     ``dt·κ > 1`` makes λ overshoot λ∞ and only warns. Defaults are the
-    deliverable's values (:data:`DELIVERABLE_BLENDER`), with its memoryless law.
+    deliverable's values (:data:`~cogblocks.sync.blending.DELIVERABLE`), with its memoryless law.
 
     Bad data policy: a non-finite ``theta_l0`` holds the last outputs and does
     not advance λ; a non-finite ``theta_ref`` asks for no alteration
@@ -95,11 +103,11 @@ class Blender(Block):
 
     def __init__(
         self,
-        lam_min: float = DELIVERABLE_BLENDER["lam_min"],
-        lam_max: float = DELIVERABLE_BLENDER["lam_max"],
-        e_max: float = DELIVERABLE_BLENDER["e_max"],
-        kappa_plus: float = DELIVERABLE_BLENDER["kappa_plus"],
-        kappa_minus: float = DELIVERABLE_BLENDER["kappa_minus"],
+        lam_min: float = DELIVERABLE.lam_min,
+        lam_max: float = DELIVERABLE.lam_max,
+        e_max: float = DELIVERABLE.e_max,
+        kappa_plus: float = DELIVERABLE.kappa_plus,
+        kappa_minus: float = DELIVERABLE.kappa_minus,
         *,
         saturation: str = "hard",
         psi: str = "triangular",
@@ -109,47 +117,36 @@ class Blender(Block):
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
+        values = {
+            "lam_min": lam_min,
+            "lam_max": lam_max,
+            "e_max": e_max,
+            "kappa_plus": kappa_plus,
+            "kappa_minus": kappa_minus,
+            "saturation": saturation,
+            "psi": psi,
+            "continuous": continuous,
+            "slew": slew,
+        }
         if params is not None:
-            given = {
-                "lam_min": lam_min != DELIVERABLE_BLENDER["lam_min"],
-                "lam_max": lam_max != DELIVERABLE_BLENDER["lam_max"],
-                "e_max": e_max != DELIVERABLE_BLENDER["e_max"],
-                "kappa_plus": kappa_plus != DELIVERABLE_BLENDER["kappa_plus"],
-                "kappa_minus": kappa_minus != DELIVERABLE_BLENDER["kappa_minus"],
-                "saturation": saturation != "hard",
-                "psi": psi != "triangular",
-                "continuous": continuous is not False,
-                "slew": slew is not None,
-            }
             if not isinstance(params, BlenderParams):
                 raise ValueError(f"Blender: params must be a BlenderParams, got {type(params).__name__}")
-            if any(given.values()):
-                raise ValueError(f"Blender: give params or {[k for k, v in given.items() if v]}, not both")
-            lam_min, lam_max, e_max = params.lam_min, params.lam_max, params.e_max
-            kappa_plus, kappa_minus = params.kappa_plus, params.kappa_minus
-            saturation, psi, continuous, slew = params.saturation, params.psi, params.continuous, params.slew
-        self.lam_min = finite_number(self, "lam_min", lam_min, low=0.0, low_open=True)
-        self.lam_max = finite_number(self, "lam_max", lam_max, low=self.lam_min)
-        self.e_max = finite_number(self, "e_max", e_max, low=0.0, low_open=True)
-        self.kappa_plus = finite_number(self, "kappa_plus", kappa_plus, low=0.0, low_open=True)
-        self.kappa_minus = finite_number(self, "kappa_minus", kappa_minus, low=0.0, low_open=True)
-        self.saturation = one_of(self, "saturation", saturation, ("hard", "smooth"))
-        self.psi = one_of(self, "psi", psi, ("triangular", "bump"))
-        if not isinstance(continuous, bool):
-            raise ValueError(f"Blender: continuous must be True or False, got {continuous!r}")
-        self.continuous = continuous
+            given = [name for name, value in values.items() if _given(value, getattr(DELIVERABLE, name))]
+            if given:
+                raise ValueError(f"Blender: give params or {given}, not both")
+            values = {name: getattr(params, name) for name in values}
+        self.lam_min = finite_number(self, "lam_min", values["lam_min"], low=0.0, low_open=True)
+        self.lam_max = finite_number(self, "lam_max", values["lam_max"], low=self.lam_min)
+        for name in ("e_max", "kappa_plus", "kappa_minus"):
+            setattr(self, name, finite_number(self, name, values[name], low=0.0, low_open=True))
+        self.saturation = one_of(self, "saturation", values["saturation"], ("hard", "smooth"))
+        self.psi = one_of(self, "psi", values["psi"], ("triangular", "bump"))
+        if not isinstance(values["continuous"], bool):
+            raise ValueError(f"Blender: continuous must be True or False, got {values['continuous']!r}")
+        self.continuous = values["continuous"]
+        slew = values["slew"]
         self.slew = None if slew is None else finite_number(self, "slew", slew, low=0.0, low_open=True)
-        self.params = BlenderParams(
-            lam_min=self.lam_min,
-            lam_max=self.lam_max,
-            e_max=self.e_max,
-            kappa_plus=self.kappa_plus,
-            kappa_minus=self.kappa_minus,
-            saturation=self.saturation,
-            psi=self.psi,
-            continuous=self.continuous,
-            slew=self.slew,
-        )
+        self.params = BlenderParams(**{name: getattr(self, name) for name in values})
         self._memoryless = replace(self.params, continuous=False, slew=None)
         self.add_input("theta_l0", PHASE)
         self.add_input("theta_ref", PHASE)

@@ -1,5 +1,8 @@
 """A pacing motion computer that checks its model before trusting it, and spreads each decision over a period.
 
+Retired as a choice of motion computer (the planner, :class:`~cogblocks.sync.receding.RecedingPlanMotion`, gains
+more on held-out groups); it stays as one of the whole-run bound's starts.
+
 :class:`GuardedPacingMotion` chooses among the candidates of :class:`~cogblocks.sync.pacing.PacingMotion`
 (doing nothing, the circular mean plain or gated, constant pacing frequencies) by the same long-horizon
 prediction through the blender on the group it identifies online, with two differences:
@@ -12,10 +15,10 @@ prediction through the blender on the group it identifies online, with two diffe
   does ``start``. Until that first check, decision periods are ``first_period`` ticks (half a period by default),
   so the first decision applies sooner: a short run is otherwise half over before the block does anything.
 * **Bounded work per tick.** A decision is started on a period's first tick and advanced a few Euler steps
-  on every tick of the period, so no tick does more than ``ceil(steps / decide_every)`` Euler steps over the
-  candidates (:attr:`max_evaluations` candidate-steps); it applies from the next period's first tick: the
-  decision is taken every ``decide_every`` ticks (``first_period`` before the first passed check), one period
-  after the state it starts from.
+  on every tick of the period, so no tick does more than ``ceil(steps / P)`` Euler steps (P the period in
+  ticks) over the candidates (:attr:`max_evaluations` candidate-steps); it applies from the next period's first
+  tick: the decision is taken every ``decide_every`` seconds (``first_period`` ticks before the first passed
+  check), one period after the state it starts from.
 """
 
 from __future__ import annotations
@@ -49,31 +52,31 @@ __all__ = [
 #: gains of ~0.012 in mean r act on a 15-participant ring near locking that lost 1.1 %; 0.02 leaves it unaltered.
 MARGIN = 0.02
 
-#: Default ``horizon`` (s) and ``commit`` (periods): a 20 s prediction, every decision chosen afresh. Chosen on all
-#: 600 groups of ``random_groups(600, "validation", 0)``, with ``end`` the group's duration, by a rule declared before
-#: the run (fewest groups below -0.5 %, then fewest lowered, then the highest mean): lowered 1 (0.2 %), none below
-#: -0.5 %, mean +3.63 %, against horizon 10 s and commit 10's 6, 4 and +3.47 % (docs/pop-sync.md, "Guarded pacing
-#: motion computer"). Without ``end``, 20 s scored beyond a short run's end and lost on short groups.
+#: Default ``horizon`` (s) and ``commit`` (periods): a 20 s prediction, every decision chosen afresh. Chosen on all 600
+#: groups of ``random_groups(600, "validation", 0)``, with ``end`` the group's duration, by a rule declared before the
+#: run (fewest groups below -0.5 %, then fewest lowered, then the highest mean): lowered 1 (0.2 %), none below -0.5 %,
+#: mean +3.63 %, against horizon 10 s and commit 10's 6, 4 and +3.47 % (docs/validation/sync.md, "How each earlier
+#: default was chosen"). Without ``end``, 20 s scored beyond a short run's end and lost on short groups.
 HORIZON = 20.0
 COMMIT = 0
 
-#: Default ``early`` (s): an alteration must also beat doing nothing over the prediction's first 10 s. Chosen in
-#: session 10 on the 600 validation groups and seed 3's 200 test groups (development data since their report), by a
-#: rule declared before the run: pooled, none below -0.5 % (the default without it: 1, seed 3's group 100 at -10.4 %),
-#: 4 lowered, mean +3.52 % (docs/pop-sync.md, "Guarded pacing motion computer").
+#: Default ``early`` (s): an alteration must also beat doing nothing over the prediction's first 10 s, so that a
+#: prediction that pays off late cannot hide an early loss. On the 600 validation groups and test seed 3's 200 groups
+#: pooled, by a rule declared before the run: none below -0.5 % (without it: 1, seed 3's group 100 at -10.4 %),
+#: 4 lowered, mean +3.52 % (docs/validation/sync.md, "How each earlier default was chosen").
 EARLY = 10.0
 
 #: What :meth:`GuardedPacingMotion.for_trial` changes when the trial's length is known: each decision predicts every
 #: candidate held to the trial's end (at most 300 s), at the 10 ms tick of the group's own simulation, one decision
-#: every 10 s spread over its period, and no margin or early test (the whole-run prediction is what is scored).
-#: Chosen in session 12 on validation groups 0-199 (docs/pop-sync.md, "A fourth round"). The first period is
+#: every 10 s spread over its period, and no margin or early test (the whole-run prediction is what is scored). Chosen
+#: on validation groups 0-199 (docs/validation/sync.md, "How each earlier default was chosen"). The first period is
 #: :data:`FIRST_PERIOD` ticks, longer on a long trial so that the first decision's fan-out to the end costs at most
 #: :data:`FIRST_STEPS_PER_TICK` Euler steps a tick (a 300 s trial: 300 ticks, not 300 steps a tick).
 TRIAL: dict[str, Any] = {
     "horizon": 300.0,
     "step": 0.01,
     "max_steps": 30000,
-    "decide_every": 1000,
+    "decide_every": 10.0,
     "margin": 0.0,
     "switch_margin": 0.0,
     "early": None,
@@ -104,7 +107,7 @@ class GuardedPacingMotion(PacingMotion):
     fallback : {"none", "mean"}
         What the block does for the next period when the last check failed.
     first_period : int, optional
-        Ticks of a decision period until a check has passed (half of ``decide_every`` by default, at least 1).
+        Ticks of a decision period until a check has passed (half the period by default, at least 1).
     commit : int
         Periods for which an alteration, once chosen, is kept (while the checks pass) before it is chosen
         again (default :data:`COMMIT`); 0: every decision chooses afresh. A prediction scores a candidate held
@@ -151,7 +154,7 @@ class GuardedPacingMotion(PacingMotion):
         super().__init__(n, assisted, **{"margin": MARGIN, "horizon": HORIZON} | pacing)
         self.tolerance = finite_number(self, "tolerance", tolerance, low=0.0)
         self.fallback = _MODES[one_of(self, "fallback", fallback, tuple(_MODES))]
-        default_first = max(1, self.decide_every // 2)
+        default_first = max(1, self.decide_ticks // 2)
         self.first_period = positive_int(self, "first_period", default_first if first_period is None else first_period)
         self.commit = positive_int(self, "commit", commit, minimum=0)
         self.end = None if end is None else finite_number(self, "end", end, low=0.0, low_open=True)
@@ -178,7 +181,8 @@ class GuardedPacingMotion(PacingMotion):
     def for_trial(cls, n: int, assisted: int, *, end: float, **options: Any) -> GuardedPacingMotion:
         """The block for a trial of known length ``end`` (s): :data:`TRIAL`'s settings, ``options`` over them.
 
-        What ``pop_sync``'s default policy is (``MOTIONS["guard"]``): the trial's mean r is what it predicts. Unless
+        What the retired name ``guard`` builds, and the whole-run bound's ``guard`` start: the trial's mean r is what
+        it predicts. Unless
         ``options`` set it, ``first_period`` is :data:`FIRST_PERIOD`, or longer where the first fan-out to the end
         would otherwise take more than :data:`FIRST_STEPS_PER_TICK` Euler steps a tick.
         """
@@ -192,7 +196,7 @@ class GuardedPacingMotion(PacingMotion):
     def max_evaluations(self) -> int:
         """Bound on the candidate-steps of one tick: Euler steps per tick × the most candidates."""
         candidates = 1 + len(self.gates) + 2 * (self.frequencies + 1)
-        return math.ceil(2 * self.max_steps / min(self.decide_every, self.first_period)) * candidates
+        return math.ceil(2 * self.max_steps / min(self.decide_ticks, self.first_period)) * candidates
 
     def reset(self) -> None:
         super().reset()
@@ -230,7 +234,7 @@ class GuardedPacingMotion(PacingMotion):
                 if model is None:  # not trusted yet: try again next tick
                     self.next_due = k + 1
                 else:
-                    self.running = self.decide_every if self.passed else self.first_period
+                    self.running = self.decide_ticks if self.passed else self.first_period
                     self._start(theta, lam, ref, model, k, dt)
                     self.next_due = k + self.running
                 self.due = False

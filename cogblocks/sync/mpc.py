@@ -1,6 +1,6 @@
 """A model-predictive motion computer: θ_ref planned over seconds through the blender to maximise the order parameter.
 
-Every ``replan_every`` ticks (a *period*, 0.5 s by default) the block solves with casadi and IPOPT
+Every ``decide_every`` seconds (a *period*, 0.5 s by default) the block solves with casadi and IPOPT
 
     max_u   mean_t r(θ̃(t))            over the horizon, θ̃ = the phases with θ_L2 substituted
     s.t.    the group, the blender's λ dynamics and θ_ref' = u on the smooth model of
@@ -8,7 +8,7 @@ Every ``replan_every`` ticks (a *period*, 0.5 s by default) the block solves wit
 
 where ``u``, the reference's frequency, is piecewise constant on knots one period long. The first knot
 is not free: it is the frequency already committed for the period in which the solve runs, so a plan
-started at tick k takes effect at tick k + replan_every and the solve has a whole period to finish. The
+started at tick k takes effect one period later and the solve has a whole period to finish. The
 block uses that period: tick k only screens the candidates (below); IPOPT then runs
 ``iterations_per_tick`` iterations on each following tick, every chunk warm-started from the last one's
 iterate and bound multipliers, until it converges or reaches ``max_iter`` (a 10 ms tick holds a chunk, not
@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from typing import Any
 
 import casadi as ca
@@ -40,6 +41,7 @@ from cogblocks.sim.params import finite_array, finite_number, one_of, positive_i
 from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.motion import OMEGA_L3_LIMIT, _IdentifyingMotion
+from cogblocks.sync.periods import block_step, decision_period, period_ticks
 from cogblocks.sync.prediction import rk4_step, seen_order, sync_ode
 
 __all__ = ["MPCMotion"]
@@ -101,8 +103,8 @@ class MPCMotion(_IdentifyingMotion):
     """Model-predictive motion computer: re-plans θ_ref's frequency every period to maximise the predicted r.
 
     See the module docstring for the problem. Decisions are taken in the update phase of ticks
-    ``0, replan_every, 2·replan_every, …``; a plan made at tick k commits the frequency of its first
-    free knot for the period from tick k + replan_every (receding horizon: later knots are only the
+    ``0, P, 2·P, …`` (P the period in ticks); a plan made at tick k commits the frequency of its first
+    free knot for the period from tick k + P (receding horizon: later knots are only the
     warm start of the next decision, shifted by one knot).
 
     Fallback: the decision's tick makes the best candidate the plan — the previous plan shifted, unless a
@@ -129,8 +131,10 @@ class MPCMotion(_IdentifyingMotion):
     blender : BlenderParams
         The blender the plan goes through (the deliverable's by default); its hard saturation also
         reconstructs θ_L2 for identification.
-    replan_every : int
-        Ticks per period (the knot length and the time a solve may take).
+    decide_every : float
+        Seconds per period (the knot length and the time a solve may take), a whole number of the block's steps.
+    replan_every : int, optional
+        Deprecated: the period in ticks; give ``decide_every`` in seconds.
     knots : int
         Free knots in the horizon (horizon = (knots + 1) periods, the committed one included: 3 s by
         default). The horizon is a trade-off measured on Table 2's groups (docs/pop-sync.md): 1 s is best
@@ -184,7 +188,8 @@ class MPCMotion(_IdentifyingMotion):
         omega: Any = None,
         gain: float | None = None,
         blender: BlenderParams | None = None,
-        replan_every: int = 50,
+        decide_every: float = 0.5,
+        replan_every: int | None = None,
         knots: int = 5,
         step: float = 0.25,
         sharpness: int = 8,
@@ -205,7 +210,10 @@ class MPCMotion(_IdentifyingMotion):
         if omega is not None:
             omega = finite_array(self, "omega", omega, shape=(n,))
             self.true_model = (omega, finite_number(self, "gain", gain, low=0.0))
-        self.replan_every = positive_int(self, "replan_every", replan_every)
+        self.decide_every, self._given_ticks = decision_period(
+            self, decide_every, old_name="replan_every", old_value=replan_every
+        )
+        self.decide_ticks = period_ticks(self, self.decide_every, self._given_ticks)  # counted again when compiled
         self.knots = positive_int(self, "knots", knots)
         self.step = finite_number(self, "step", step, low=0.0, low_open=True)
         self.sharpness = one_of(self, "sharpness", sharpness, (2, 4, 6, 8, 10, 12, 16))
@@ -235,14 +243,24 @@ class MPCMotion(_IdentifyingMotion):
 
     @property
     def decision_period(self) -> float:
-        """Seconds between plans: ``replan_every`` ticks of the block's step (10 ms before compiling)."""
-        return self.replan_every * (self.dt * self.every if getattr(self, "dt", None) else 0.01)
+        """Seconds between plans: ``decide_ticks`` ticks of the block's step."""
+        return self.decide_ticks * block_step(self)
+
+    @property
+    def replan_every(self) -> int:
+        """Deprecated: the period in ticks (``decide_ticks``)."""
+        warnings.warn("MPCMotion.replan_every is deprecated: use decide_ticks", DeprecationWarning, stacklevel=2)
+        return self.decide_ticks
 
     def setup(self) -> None:
-        period = self.replan_every * self.dt * self.every
+        try:
+            self.decide_ticks = period_ticks(self, self.decide_every, self._given_ticks)
+        except ValueError as exc:
+            raise self._fail(str(exc).removeprefix("MPCMotion: ")) from None
+        period = self.decide_ticks * self.dt * self.every
         steps = round(period / self.step)
         if steps < 1 or not math.isclose(steps * self.step, period, rel_tol=1e-9):
-            raise self._fail(f"step ({self.step} s) must divide the period ({period:g} s = replan_every ticks)")
+            raise self._fail(f"step ({self.step} s) must divide the period ({period:g} s = decide_every)")
         self._steps_per_knot = steps
         self._planner = _planner(
             self.adjacency,
@@ -263,7 +281,7 @@ class MPCMotion(_IdentifyingMotion):
 
     def frequency(self, k: int) -> float:
         """The reference's frequency (rad/s) at tick ``k`` under the plan in force (NaN before the first plan)."""
-        index = min((k - self.plan_tick) // self.replan_every, self.knots)
+        index = min((k - self.plan_tick) // self.decide_ticks, self.knots)
         return float(self.plan[index])
 
     def model(self) -> tuple[np.ndarray, float] | None:
@@ -281,7 +299,7 @@ class MPCMotion(_IdentifyingMotion):
         lam = min(max(lam, self.blender.lam_min), self.blender.lam_max) if good else lam
         if good:
             self._identify(theta, lam)
-        if k % self.replan_every == 0:
+        if k % self.decide_ticks == 0:
             self.due = True
         model = self.model() if good and self.due else None
         start, working = time.thread_time(), self.solving
@@ -327,7 +345,7 @@ class MPCMotion(_IdentifyingMotion):
         low, high = float(np.min(omega)) - 1.0, float(np.max(omega)) + 1.0
         if has_plan:
             committed = self.frequency(k)
-            shift = (k - self.plan_tick) // self.replan_every + 1  # the previous plan from the next knot, last held
+            shift = (k - self.plan_tick) // self.decide_ticks + 1  # the previous plan from the next knot, last held
             shifted = self.plan[np.minimum(np.arange(shift, shift + self.knots), self.knots)]
         else:
             committed = float(np.clip(np.mean(omega), -OMEGA_L3_LIMIT, OMEGA_L3_LIMIT))

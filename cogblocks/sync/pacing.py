@@ -1,6 +1,6 @@
 """A pacing motion computer: every period, the reference that the identified group model predicts best over seconds.
 
-Every ``decide_every`` ticks (a *period*) the block simulates the group it has identified online, with the
+Every ``decide_every`` seconds (a *period*) the block simulates the group it has identified online, with the
 blender's λ dynamics in the loop, ``horizon`` seconds ahead for a set of candidate references held over the
 whole horizon, all at once (NumPy, forward Euler at a coarse step):
 
@@ -34,6 +34,7 @@ from cogblocks.sim.params import finite_array, finite_number, one_of, positive_i
 from cogblocks.sync.blending import BlenderParams, lam_step
 from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.motion import OMEGA_L3_LIMIT, _IdentifyingMotion
+from cogblocks.sync.periods import block_step, decision_period, period_ticks
 
 __all__ = ["MEAN", "NONE", "PACE", "PacingMotion", "euler_step", "margin_choice", "predicted_order"]
 
@@ -150,7 +151,7 @@ class PacingMotion(_IdentifyingMotion):
     """Chooses, every period, the reference the identified group model predicts best over a long horizon.
 
     See the module docstring for the candidates and the choice. Decisions are taken in the update phase of
-    ticks ``0, decide_every, 2·decide_every, …`` once the model is trusted, and apply from the next tick.
+    ticks ``0, P, 2·P, …`` (``P`` the period in ticks) once the model is trusted, and apply from the next tick.
     Before that (fewer than ``min_ticks`` observed increments, or too little information on the gain:
     :meth:`KuramotoRLS.gain_excitation` below ``min_excitation``) the block does what ``start`` says.
 
@@ -164,8 +165,8 @@ class PacingMotion(_IdentifyingMotion):
         The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a matrix), known to the block.
     blender : BlenderParams
         The blender the predictions go through (the deliverable's by default).
-    decide_every : int
-        Ticks per period.
+    decide_every : float
+        Seconds per period, a whole number of the block's steps.
     horizon : float
         Seconds simulated per decision.
     step : float
@@ -209,7 +210,7 @@ class PacingMotion(_IdentifyingMotion):
         *,
         adjacency: Any = "ring",
         blender: BlenderParams | None = None,
-        decide_every: int = 100,
+        decide_every: float = 1.0,
         horizon: float = 10.0,
         step: float = 0.05,
         max_steps: int = 600,
@@ -223,7 +224,8 @@ class PacingMotion(_IdentifyingMotion):
         period: float | None = None,
     ) -> None:
         super().__init__(n, assisted, period, adjacency, blender)
-        self.decide_every = positive_int(self, "decide_every", decide_every)
+        self.decide_every, self._given_ticks = decision_period(self, decide_every)
+        self.decide_ticks = period_ticks(self, self.decide_every, self._given_ticks)  # counted again when compiled
         self.horizon = finite_number(self, "horizon", horizon, low=0.0, low_open=True)
         self.step = finite_number(self, "step", step, low=0.0, low_open=True)
         self.max_steps = positive_int(self, "max_steps", max_steps)
@@ -247,8 +249,15 @@ class PacingMotion(_IdentifyingMotion):
 
     @property
     def decision_period(self) -> float:
-        """Seconds between decisions: ``decide_every`` ticks of the block's step (10 ms before compiling)."""
-        return self.decide_every * (self.dt * self.every if getattr(self, "dt", None) else 0.01)
+        """Seconds between decisions: ``decide_ticks`` ticks of the block's step."""
+        return self.decide_ticks * block_step(self)
+
+    def setup(self) -> None:
+        super().setup()
+        try:
+            self.decide_ticks = period_ticks(self, self.decide_every, self._given_ticks)
+        except ValueError as exc:
+            raise self._fail(str(exc).removeprefix(f"{type(self).__name__}: ")) from None
 
     def reset(self) -> None:
         super().reset()
@@ -282,7 +291,7 @@ class PacingMotion(_IdentifyingMotion):
     def update(self, k: int) -> None:
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
         dt = self.dt * self.every
-        if k % self.decide_every == 0:
+        if k % self.decide_ticks == 0:
             self.due = True
         if not (usable_phases(theta) and math.isfinite(lam)):
             self.previous[...] = math.nan

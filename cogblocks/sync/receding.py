@@ -39,8 +39,8 @@ from cogblocks.sync.blending import BlenderParams, alteration
 from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import DT
 from cogblocks.sync.motion import _IdentifyingMotion
-from cogblocks.sync.planned import checked_sweeps
 from cogblocks.sync.rollouts import stepped
+from cogblocks.sync.sweeps import checked_sweeps
 from cogblocks.sync.whole_run import (
     alteration_rollout,
     identified_tick_model,
@@ -85,8 +85,9 @@ class RecedingPlanMotion(_IdentifyingMotion):
         The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a matrix), known to the block.
     blender : BlenderParams
         The blender the plan goes through (the deliverable's by default).
-    decide_every : float
+    decide_every : float or None
         The decision period (s, a multiple of the 10 ms tick): a decision takes effect one period after it starts.
+        ``None``: one decision, the whole trial planned at once, played open loop (``whole_trial_plan`` builds it).
     horizon : float or None
         How far a plan reaches (s): the predicted mean r over it is what a decision maximises. ``None``: to the
         trial's end (``end`` needed).
@@ -140,7 +141,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
         end: float | None,
         adjacency: Any = "ring",
         blender: BlenderParams | None = None,
-        decide_every: float = 1.0,
+        decide_every: float | None = 1.0,
         horizon: float | None = 30.0,
         compare: float | None = 10.0,
         extend: str = "rule",
@@ -154,9 +155,14 @@ class RecedingPlanMotion(_IdentifyingMotion):
     ) -> None:
         super().__init__(n, assisted, period, adjacency, blender)
         self.end = None if end is None else finite_number(self, "end", end, low=0.0, low_open=True)
-        self.decide_ticks = _ticks(self, "decide_every", decide_every)
+        self.decide_ticks = None if decide_every is None else _ticks(self, "decide_every", decide_every)
         if horizon is None and self.end is None:
             raise ValueError("RecedingPlanMotion: horizon=None plans to the trial's end, which needs end")
+        if decide_every is None and (horizon is not None or worker != "inline"):
+            raise ValueError(
+                "RecedingPlanMotion: decide_every=None plans the whole trial at once, in the tick it decides: "
+                f"it needs horizon=None and worker='inline', got horizon={horizon!r}, worker={worker!r}"
+            )
         self.horizon_ticks = None if horizon is None else _ticks(self, "horizon", horizon)
         if self.horizon_ticks is not None and self.horizon_ticks < self.decide_ticks:
             raise ValueError(
@@ -193,8 +199,8 @@ class RecedingPlanMotion(_IdentifyingMotion):
 
     @property
     def decision_period(self) -> float:
-        """Seconds between decisions (``decide_every``)."""
-        return self.decide_ticks * DT
+        """Seconds between decisions (``decide_every``); infinite for the one decision of ``decide_every=None``."""
+        return math.inf if self.decide_ticks is None else self.decide_ticks * DT
 
     def reset(self) -> None:
         super().reset()
@@ -254,19 +260,21 @@ class RecedingPlanMotion(_IdentifyingMotion):
             return
         if abs(dt - DT) > 1e-12:
             raise RuntimeError(f"RecedingPlanMotion plans on the {DT} s tick of cogblocks.sync.model.DT, not {dt} s")
-        start = k + self.decide_ticks
+        start = k + (self.decide_ticks or 1)  # one decision (decide_every=None): its plan starts at the next tick
         self.next_decision = start
         if self.end is None:
             stop = start + self.horizon_ticks
         else:
             stop = round(self.end / DT) + 1
             stop = stop if self.horizon_ticks is None else min(stop, start + self.horizon_ticks)
+            self.next_decision = stop if self.decide_ticks is None else start
         if stop <= start:
             return
         state = initial_state(theta, lam, self.blender, last_shift)
         task = (omega.copy(), float(gain), state, k, start, stop, self._committed())
         if self.worker == "inline":
             self._hold(self._decide(*task))
+            self._take_decision(k)  # a plan that starts at the next tick is in force from it
             return
         if self._executor is None:
             self._executor = ThreadPoolExecutor(1, thread_name_prefix="cogblocks-replan")
@@ -326,12 +334,9 @@ class RecedingPlanMotion(_IdentifyingMotion):
         state = np.asarray(state, dtype=float)
         # ω and K ride in the state of the one tick model, before the blender's memory
         x = np.r_[state[: self.n + 1], omega, gain, state[self.n + 1 :]]
-        through = np.zeros(start - k)  # the plan in force's alterations to the new plan's first tick
-        if committed is not None:
-            first = max(k, committed[2])
-            part = committed[0][first - committed[2] : start - committed[2]]
-            through[first - k : first - k + len(part)] = part
-        x = stepped(tick, x, through, self.n)
+        a, first = (np.zeros(0), k) if committed is None else committed[::2]  # through the plan in force …
+        through = [a[j - first] if 0 <= j - first < len(a) else 0.0 for j in range(k, start)]
+        x = stepped(tick, x, through, self.n)  # … to the new plan's first tick
         n_ticks = stop - start
         roll = rollout_function(tick, self._solvers)
         nothing = float(alteration_rollout(roll, x, np.zeros(n_ticks))[1].mean())

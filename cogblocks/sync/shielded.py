@@ -18,8 +18,8 @@ without L2). The decision is :class:`~cogblocks.sync.pacing.PacingMotion`'s, on 
 
 Shielding (checking a learned controller's actions against a model and overriding the unsafe ones) is a standard
 way to keep a policy's gains where the model vouches for them and nothing else: doing nothing is what cannot
-lower r. The rollout is spread over the period (``ceil(horizon / dt / decide_every)`` predicted ticks per tick
-without a backup part; with one, the policy part in the first half of the period and the backup part in the
+lower r. The rollout is spread over the period (``ceil(horizon / dt / P)`` predicted ticks per tick, P the period in
+ticks, without a backup part; with one, the policy part in the first half of the period and the backup part in the
 rest), and its decision applies from the next period's first tick.
 """
 
@@ -45,7 +45,7 @@ __all__ = ["BACKUP", "DECIDE_EVERY", "FOLLOW", "HORIZON", "MARGIN", "PolicyRollo
 #: backup), and a predicted gain of 0.001 in mean r over those 10 s needed to follow it. Chosen on validation groups
 #: 0–119 among four settings (fewest lowered, then the highest mean change) and confirmed on groups 120–299 against
 #: the first version's 1 s, no backup, 0.005 (docs/pop-sync.md, "The shield's backup part").
-DECIDE_EVERY = 100
+DECIDE_EVERY = 1.0
 HORIZON = 2.0
 BACKUP = 8.0
 MARGIN = 0.001
@@ -170,8 +170,9 @@ class ShieldedMotion(PacingMotion):
         The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a matrix), for the prediction.
     blender : BlenderParams
         The blender the predictions go through (the deliverable's by default).
-    decide_every : int
-        Ticks per period: a decision every period, from a prediction started one period earlier.
+    decide_every : float
+        Seconds per period (a whole number of the block's steps): a decision every period, from a prediction
+        started one period earlier.
     horizon : float
         Seconds predicted per decision under the policy (and under doing nothing).
     backup : float
@@ -208,7 +209,7 @@ class ShieldedMotion(PacingMotion):
         *,
         adjacency: Any = "ring",
         blender: BlenderParams | None = None,
-        decide_every: int = DECIDE_EVERY,
+        decide_every: float = DECIDE_EVERY,
         horizon: float = HORIZON,
         backup: float = BACKUP,
         margin: float = MARGIN,
@@ -271,7 +272,7 @@ class ShieldedMotion(PacingMotion):
     def update(self, k: int) -> None:
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
         dt = self.dt * self.every
-        if k % self.decide_every == 0:
+        if k % self.decide_ticks == 0:
             self.due = True
         if not (usable_phases(theta) and math.isfinite(lam)):
             self.previous[...] = math.nan
@@ -303,14 +304,14 @@ class ShieldedMotion(PacingMotion):
                 setattr(self, f"job_{name}", value)
 
     def _advance_job(self) -> None:
-        """One tick's share of the prediction in progress: ``decide_every`` calls from its start finish it."""
+        """One tick's share of the prediction in progress: ``decide_ticks`` calls from its start finish it."""
         job = self.job
         if not job.backup_steps:
-            self.advance_rollout(job, math.ceil(job.steps / self.decide_every))
+            self.advance_rollout(job, math.ceil(job.steps / self.decide_ticks))
             return
         # the policy part in the first half of the period, the backup part in the rest, from the tick the first ends
-        first = max(1, self.decide_every // 2)
-        rest = max(1, self.decide_every - first)
+        first = max(1, self.decide_ticks // 2)
+        rest = max(1, self.decide_ticks - first)
         self.advance_rollout(job, math.ceil(job.steps / first), math.ceil(job.backup_steps / rest))
 
     def _rollout(

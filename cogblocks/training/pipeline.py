@@ -92,6 +92,13 @@ def load_library(
     raise ValueError(f"{path}: unknown library format '{suffix}' (expected .mat, .npz or .csv)")
 
 
+def _speed(library: ReachLibrary) -> dict[str, float]:
+    """The RMS speed of the movements' samples in mm/s: a file read in the wrong unit shows here."""
+    moving = np.arange(library.velocity.shape[1]) < np.asarray(library.length)[:, None]
+    speed = np.linalg.norm(library.velocity, axis=-1)[moving]
+    return {"speed_rms_mm_s": float(np.sqrt(np.mean(speed**2)))}
+
+
 def run_pipeline(
     library: ReachLibrary | str | os.PathLike,
     out_dir: str | os.PathLike,
@@ -100,6 +107,7 @@ def run_pipeline(
     *,
     label_field: str | None = None,
     dt: float | None = None,
+    unit: str | None = None,
     limit: int | None = None,
     encoder_epochs: int | None = None,
     corrector_episodes: int | None = None,
@@ -122,7 +130,7 @@ def run_pipeline(
         Seeds the split, every network and the corrector's training.
     quick : bool
         5 encoder epochs and 60 corrector episodes instead of 40 and 1100.
-    label_field, dt : see :func:`load_library`.
+    label_field, dt, unit : see :func:`load_library` (``unit``: the file's length unit, converted to mm).
     limit : int, optional
         Validate only the first ``limit`` held-out movements per direction.
     encoder_epochs, corrector_episodes : int, optional
@@ -141,7 +149,7 @@ def run_pipeline(
     say = log or (lambda _: None)
     started = time.perf_counter()
     if not isinstance(library, ReachLibrary):
-        library = load_library(library, label_field=label_field, dt=dt)
+        library = load_library(library, label_field=label_field, dt=dt, unit=unit)
     counts = {"fear": int(library.fear.sum()), "no_fear": int((~library.fear).sum())}
     if min(counts.values()) < 10:
         raise ValueError(f"run_pipeline: each class needs at least 10 movements, got {counts}")
@@ -213,7 +221,7 @@ def run_pipeline(
     held_out = library.subset(val_idx)
     recorded_decisions = judges.decide(held_out.velocity)
     report: dict[str, Any] = {
-        "library": {"n": len(library), **counts, "dt": library.dt, "sha256": fingerprint},
+        "library": {"n": len(library), **counts, "dt": library.dt, "sha256": fingerprint, **_speed(library)},
         "split": {"seed": seed, "val_fraction": VAL_FRACTION, "train": len(train_idx), "held_out": len(val_idx)},
         "encoder_cv": [{"split_seed": r.split_seed, "accuracy": r.accuracy} for r in folds],
         "encoder_held_out_accuracy": float(

@@ -19,7 +19,7 @@ from cogblocks.data.groups import TABLE2, GroupNoise, SyncGroup, random_groups
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.evaluation.sync_bound import upper_bound
 from cogblocks.sim import Simulator
-from cogblocks.sync import GuardedPacingMotion
+from cogblocks.sync.guarded import GuardedPacingMotion
 from cogblocks.sync.model import DT, BlenderParams, SyncModel, order_parameter
 from cogblocks.sync.whole_run import CHUNK
 

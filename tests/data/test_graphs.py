@@ -11,7 +11,7 @@ from cogblocks.data.graphs import adjacency_matrix, complete_adjacency, graph_ed
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.sim import Diagram, Simulator
-from cogblocks.sync import KuramotoGroup, MotionComputer, SyncModel
+from cogblocks.sync import KuramotoGroup, OscillatorMotion, SyncModel
 from cogblocks.sync.coupling import Coupling
 from cogblocks.sync.motion import HOLD_ACTION
 from cogblocks.training.sync_env import evaluate
@@ -134,7 +134,7 @@ def hold_policy():
 def test_diagram_and_model_agree_on_a_weighted_directed_graph():
     a = weighted_directed(6, 0.6, 3)
     group = SyncGroup("directed", 6, 0.8, (2.0, 2.5, 3.1, 3.3, 4.0, 2.2), 2, 2.0, graph=a)
-    motion = MotionComputer(
+    motion = OscillatorMotion(
         hold_policy(), n=6, assisted=2, gain=0.8, omega_init=float(np.mean(group.omega)), adjacency=a
     )
     np.testing.assert_array_equal(motion.coupling, a[2])
@@ -164,7 +164,8 @@ def test_model_uses_the_sparse_product_for_large_groups():
 
 @pytest.mark.parametrize("graph", ["ring", "all", ("random", 0.5, 4), "weighted"])
 def test_every_identifying_motion_computer_models_the_graph_it_is_given(graph):
-    from cogblocks.sync import MPCMotion, PacingMotion, PlannedMotion, RecedingPlanMotion
+    from cogblocks.sync import MPCMotion, PacingMotion, RecedingPlanMotion
+    from cogblocks.sync.planned import whole_trial_plan
 
     spec = weighted_directed(5, 0.6, 1) if graph == "weighted" else graph
     expected = adjacency_matrix(spec, 5)
@@ -172,7 +173,7 @@ def test_every_identifying_motion_computer_models_the_graph_it_is_given(graph):
     blocks = [
         MPCMotion(5, 1, adjacency=spec),
         PacingMotion(5, 1, adjacency=spec),
-        PlannedMotion(5, 1, end=5.0, adjacency=spec),
+        whole_trial_plan(5, 1, end=5.0, adjacency=spec),
         RecedingPlanMotion(5, 1, end=5.0, adjacency=spec),
     ]
     for block in blocks:

@@ -10,7 +10,7 @@ from cogblocks.cli import main
 from cogblocks.data.groups import TABLE2
 from cogblocks.diagrams.sync import pop_sync, run_sync
 from cogblocks.sim import Diagram, DiagramError, Simulator
-from cogblocks.sync import Blender, L2Sync, MeanPhaseMotion, MotionComputer
+from cogblocks.sync import Blender, L2Sync, MeanPhaseMotion, OscillatorMotion
 from cogblocks.sync.motion import ACTIONS, l3_observation
 
 
@@ -77,17 +77,17 @@ def test_motion_computers_share_ports_and_checks():
         def act(self, context):
             return int(np.flatnonzero(ACTIONS == 0.0)[0])
 
-    l3 = MotionComputer(Hold(), n=group.n, assisted=group.assisted, gain=group.gain, omega_init=4.0)
+    l3 = OscillatorMotion(Hold(), n=group.n, assisted=group.assisted, gain=group.gain, omega_init=4.0)
     assert set(mean.inputs) == set(l3.inputs) == {"theta", "lam"}
     assert set(mean.outputs) == set(l3.outputs) == {"theta_ref"}
     d = pop_sync(2, motion=mean, blender="deliverable")
     d.replace("l2.motion", l3)
     Simulator(d).run(n_steps=5)
     with pytest.raises(ValueError, match="OscillatorMotion: policy must have an act"):
-        MotionComputer(object(), n=3, assisted=0, gain=1.0, omega_init=1.0)
+        OscillatorMotion(object(), n=3, assisted=0, gain=1.0, omega_init=1.0)
     omega_message = r"OscillatorMotion: omega_init must be a finite number in \[-15.0, 15.0\], got 20"
     with pytest.raises(ValueError, match=omega_message):
-        MotionComputer(Hold(), n=3, assisted=0, gain=1.0, omega_init=20)
+        OscillatorMotion(Hold(), n=3, assisted=0, gain=1.0, omega_init=20)
     with pytest.raises(ValueError, match=r"MeanPhaseMotion: assisted must be a 0-based index in \[0, 2\], got 3"):
         MeanPhaseMotion(3, 3)
     with pytest.raises(ValueError, match="pop_sync: group must be one of"):
@@ -97,7 +97,7 @@ def test_motion_computers_share_ports_and_checks():
 
 
 def test_virtual_oscillator_follows_its_equation():
-    """MotionComputer with a constant-action policy: θ_L3 against the formula, from a played phase vector."""
+    """OscillatorMotion with a constant-action policy: θ_L3 against the formula, from a played phase vector."""
     theta = np.mod(np.cumsum(np.full((200, 4), [0.03, 0.04, 0.05, 0.02]), axis=0), 2 * np.pi)
 
     class Up:
@@ -111,7 +111,7 @@ def test_virtual_oscillator_follows_its_equation():
     policy = Up()
     d = Diagram()
     src = d.add("src", Playback(theta, unit="rad", wrapped=True))
-    mc = d.add("mc", MotionComputer(policy, n=4, assisted=1, gain=0.7, omega_init=2.0))
+    mc = d.add("mc", OscillatorMotion(policy, n=4, assisted=1, gain=0.7, omega_init=2.0))
     d.connect(src.y, mc.theta)
     d.add("p", Probe())
     d.connect(mc.theta_ref, "p.u")

@@ -36,6 +36,7 @@ def test_bound_is_below_one_and_above_every_constant_reference(bounded):
     assert constant_frequency_bound(group, duration=DURATION) <= bound <= 1.0
 
 
+@pytest.mark.filterwarnings("ignore:motion computer .* is retired:DeprecationWarning")  # retired names on purpose
 @pytest.mark.parametrize("motion", ["mean", "lookahead", "mpc", "pace"])
 def test_bound_is_above_the_policies(bounded, motion):
     group, bound = bounded

@@ -14,7 +14,7 @@ from cogblocks.diagrams.amplification import pop_amplification
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.experiments.files import diagram_from_dict, diagram_to_dict, load_diagram, save_diagram
 from cogblocks.sim import Block, Diagram, DiagramError, Signal, Simulator
-from cogblocks.sync import ArmPositions, KuramotoGroup, MeanPhaseMotion, MotionComputer, RecedingPlanMotion
+from cogblocks.sync import ArmPositions, KuramotoGroup, MeanPhaseMotion, OscillatorMotion, RecedingPlanMotion
 
 torch.set_num_threads(1)
 
@@ -28,13 +28,19 @@ def same_run(a, b, n_steps, probes=None):
     return ta
 
 
-@pytest.mark.parametrize("suffix", [".json", ".yaml"])
-def test_pop_sync_reloads_bit_identical(tmp_path, suffix):
-    path = save_diagram(pop_sync(3, blender="deliverable"), tmp_path / f"sync{suffix}")
-    loaded = load_diagram(path)
-    assert type(loaded["l2"]).__name__ == "L2Sync" and isinstance(loaded["l2.motion"], RecedingPlanMotion)
-    trace = same_run(pop_sync(3, blender="deliverable"), loaded, 1500, probes=["group.theta", "l2.lam"])
-    assert trace["r"].std() > 0  # something happens in the run compared
+def test_pop_sync_reloads_bit_identical(tmp_path):
+    probes = ["group.theta", "l2.lam"]
+    # 400 ticks: the default planner has decided four times and played three of its plans
+    reference = Simulator(pop_sync(3, blender="deliverable"), probes=probes).run(n_steps=400)
+    assert reference["r"].std() > 0  # something happens in the run compared
+    for suffix in (".json", ".yaml"):
+        loaded = load_diagram(save_diagram(pop_sync(3, blender="deliverable"), tmp_path / f"sync{suffix}"))
+        assert type(loaded["l2"]).__name__ == "L2Sync" and isinstance(loaded["l2.motion"], RecedingPlanMotion)
+        trace = Simulator(loaded, probes=probes).run(n_steps=400)
+        assert list(trace) == list(reference) and trace.units == reference.units
+        assert len(loaded["l2.motion"].plans) == 3
+        for name in reference:
+            np.testing.assert_array_equal(trace[name], reference[name], strict=True)
 
 
 def test_the_file_is_plain_data(tmp_path):
@@ -198,7 +204,7 @@ def test_what_cannot_be_saved_is_refused_by_name():
     with pytest.raises(TypeError, match=r"arms: parameter 'seed': a Generator cannot be stored"):
         diagram_to_dict(d)
     g = TABLE2[1]
-    motion = MotionComputer(HoldPolicy(), n=g.n, assisted=g.assisted, gain=g.gain, omega_init=4.0)
+    motion = OscillatorMotion(HoldPolicy(), n=g.n, assisted=g.assisted, gain=g.gain, omega_init=4.0)
     with pytest.raises(TypeError, match=r"l2: parameter 'motion': parameter 'policy': a HoldPolicy cannot"):
         diagram_to_dict(pop_sync(1, motion=motion, blender="deliverable"))
     d = Diagram()

@@ -191,3 +191,49 @@ def streamer(lsl) -> Iterator[Callable[..., Streamer]]:
     yield start
     for s in started:
         s.stop()
+
+
+class ViewServer:
+    """``cogblocks view FILE --port 0`` in a subprocess: its URL once it serves; Ctrl-C ends it (``stop``)."""
+
+    def __init__(self, path: str) -> None:
+        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "cogblocks.cli", "view", str(path), "--port", "0"],
+            cwd=root,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        self.line = self.process.stdout.readline()
+        self.url = self.line.split(" at ")[1].split()[0] if " at http" in self.line else ""
+
+    def get(self, what: str) -> dict:
+        """The page's ``meta`` or ``data`` as JSON."""
+        import json
+        import urllib.request
+
+        return json.loads(urllib.request.urlopen(self.url + what, timeout=10).read())
+
+    def stop(self) -> tuple[int, str]:
+        """Ctrl-C; the exit code and what it wrote on stderr."""
+        import signal
+
+        self.process.send_signal(signal.SIGINT)
+        _, err = self.process.communicate(timeout=20)
+        return self.process.returncode, err
+
+
+@pytest.fixture
+def view_server() -> Iterator[Callable[[str], ViewServer]]:
+    """Start ``cogblocks view`` on a file: ``view_server(path)``; stopped after the test if still running."""
+    started: list[ViewServer] = []
+
+    def start(path: str) -> ViewServer:
+        started.append(ViewServer(path))
+        return started[-1]
+
+    yield start
+    for server in started:
+        if server.process.poll() is None:
+            server.stop()

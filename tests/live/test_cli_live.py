@@ -166,30 +166,16 @@ def test_the_record_path_is_checked_before_the_run(lsl, stream_name, tmp_path, c
     assert code == 2 and "ending in one of .xdf" in capsys.readouterr().err
 
 
-def test_view_serves_a_saved_trace_until_ctrl_c(tmp_path):
-    import urllib.request
-
+def test_view_serves_a_saved_trace_until_ctrl_c(tmp_path, view_server):
     t = 0.01 * np.arange(500)
     np.savez(tmp_path / "run.npz", t=t, theta=np.mod(t, 2 * np.pi), tick_ms=np.ones(500), start_ms=np.zeros(500))
-    view = subprocess.Popen(
-        [sys.executable, "-m", "cogblocks.cli", "view", str(tmp_path / "run.npz"), "--port", "0"],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        line = view.stdout.readline()
-        assert line.startswith(f"view of {tmp_path / 'run.npz'} at http://127.0.0.1:"), line + view.stderr.read()
-        url = line.split(" at ")[1].split()[0]
-        meta = json.loads(urllib.request.urlopen(url + "meta", timeout=10).read())
-        data = json.loads(urllib.request.urlopen(url + "data", timeout=10).read())
-        assert meta["mode"] == "view" and [p["series"] for p in meta["panels"]] == [["theta"], ["late"]]
-        assert data["t"] == t.tolist() and data["ticks"] == 500 and data["theta"][7] == [0.07]
-    finally:
-        view.send_signal(signal.SIGINT)
-        out, err = view.communicate(timeout=20)
-    assert view.returncode == 0, err
+    view = view_server(tmp_path / "run.npz")
+    assert view.line.startswith(f"view of {tmp_path / 'run.npz'} at http://127.0.0.1:"), view.line
+    meta, data = view.get("meta"), view.get("data")
+    assert meta["mode"] == "view" and [p["series"] for p in meta["panels"]] == [["theta"], ["late"]]
+    assert data["t"] == t.tolist() and data["ticks"] == 500 and data["theta"][7] == [0.07]
+    code, err = view.stop()
+    assert code == 0, err
 
 
 def test_live_scope_serves_the_run_on_loopback(lsl, streamer, stream_name):
@@ -214,3 +200,42 @@ def test_live_scope_serves_the_run_on_loopback(lsl, streamer, stream_name):
         out, err = cli.communicate(timeout=60)
     assert cli.returncode == 0, err
     assert "400 ticks at 100 Hz" in out
+
+
+def _recorded_ticks(pyxdf, path):
+    """Ticks of the run stream in the session file as it is now (0 before the first write)."""
+    if not path.exists():
+        return 0
+    streams, _ = pyxdf.load_xdf(str(path), synchronize_clocks=False, dejitter_timestamps=False)
+    return sum(len(s["time_stamps"]) for s in streams if s["info"]["name"][0] == "cogblocks run")
+
+
+def test_a_run_killed_mid_session_leaves_a_file_that_replays_tick_for_tick(lsl, streamer, stream_name, tmp_path):
+    """The session is written as the run goes: after SIGKILL the file reads and replays what was computed."""
+    pyxdf = pytest.importorskip("pyxdf", reason="the recordings extra (pyxdf) is not installed")
+    from cogblocks.cli import main
+
+    streamer(f"{stream_name}-arm", lambda t: 150.0 * np.cos(2 * np.pi * t))
+    record, replayed = tmp_path / "s.xdf", tmp_path / "replay.npz"
+    arm, out = f"{stream_name}-arm", f"{stream_name}-phase"
+    cli = _cli("phase", "--in", arm, "--out", out, "--duration", "600", "--record", str(record))
+    try:
+        _reader(lsl, out).pull_sample(timeout=5.0)  # it runs
+        deadline = time.monotonic() + 120  # a guard against a hung run, not a measure of speed
+        while _recorded_ticks(pyxdf, record) < 100:
+            assert time.monotonic() < deadline and cli.poll() is None, "no ticks written to the session file"
+            time.sleep(0.2)
+    finally:
+        cli.kill()
+        cli.communicate(timeout=30)
+    assert cli.returncode == -signal.SIGKILL
+    streams, _ = pyxdf.load_xdf(str(record), synchronize_clocks=False, dejitter_timestamps=False)
+    by_name = {s["info"]["name"][0]: s for s in streams}
+    assert set(by_name) == {arm, out, "inlet ticks", "cogblocks run"}
+    n = len(by_name["cogblocks run"]["time_stamps"])
+    assert n >= 100 and len(by_name["inlet ticks"]["time_stamps"]) >= n and len(by_name[arm]["time_stamps"]) > 0
+    # the replay computes, tick for tick, the phase the killed run published
+    assert main(["replay", str(record), "phase", "--save", str(replayed), "--json"]) == 0
+    with np.load(replayed) as run:
+        assert len(run["theta"]) == n
+        np.testing.assert_array_equal(run["theta"], by_name[out]["time_series"][:n, 0])

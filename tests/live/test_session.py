@@ -92,8 +92,8 @@ def test_a_sync_session_replays_on_three_wrapped_channels(lsl, streamer, stream_
 
 
 def test_a_file_that_is_not_a_session_is_named(tmp_path):
+    from cogblocks.data.xdf_write import XDFStream, write_xdf
     from cogblocks.live.replay import load_session
-    from cogblocks.live.xdf import XDFStream, write_xdf
 
     with pytest.raises(ValueError, match=r"nothing\.xdf: no such file"):
         load_session(tmp_path / "nothing.xdf")
@@ -103,3 +103,32 @@ def test_a_file_that_is_not_a_session_is_named(tmp_path):
     plain = write_xdf(tmp_path / "plain.xdf", [XDFStream("a", "b", np.zeros(1), np.zeros((1, 1)))])
     with pytest.raises(ValueError, match=r"plain\.xdf: not a cogblocks session \(no 'cogblocks run' stream"):
         load_session(plain)
+
+
+def test_a_session_written_as_the_run_goes_holds_what_the_finished_run_writes(lsl, streamer, stream_name, tmp_path):
+    from cogblocks.live import live_phase, run_realtime
+    from cogblocks.live.session import SessionRecorder, write_session
+
+    streamer(f"{stream_name}-in", lambda t: 100.0 * np.sin(2 * np.pi * t))
+    compiled = live_phase(f"{stream_name}-in", f"{stream_name}-out").compile(0.01)
+    options = {"diagram": "phase", "in": f"{stream_name}-in", "out": f"{stream_name}-out"}
+    recorder = SessionRecorder(tmp_path / "going.xdf", compiled, options, every=0.05)  # many small writes
+    report = run_realtime(compiled, 1.5, record=True, recorder=recorder)
+    assert recorder.close(report.interrupted) == tmp_path / "going.xdf"
+    for block in compiled.blocks.values():
+        if hasattr(block, "close"):
+            block.close()
+    write_session(tmp_path / "whole.xdf", compiled, report, options)
+    read = [
+        pyxdf.load_xdf(str(tmp_path / name), synchronize_clocks=False, dejitter_timestamps=False)[0]
+        for name in ("going.xdf", "whole.xdf")
+    ]
+    assert [s["info"] for s in read[0]] == [s["info"] for s in read[1]]
+    for going, whole in zip(*read, strict=True):
+        name = going["info"]["name"][0]
+        np.testing.assert_array_equal(going["time_stamps"], whole["time_stamps"], err_msg=name)
+        np.testing.assert_array_equal(going["time_series"], whole["time_series"], err_msg=name)
+        assert going["clock_values"] == whole["clock_values"] and going["footer"] == whole["footer"], name
+    run = next(s for s in read[0] if s["info"]["name"][0] == "cogblocks run")
+    assert len(run["time_stamps"]) == report.ticks == 150
+    assert run["footer"]["info"]["cogblocks"][0]["interrupted"] == ["false"]

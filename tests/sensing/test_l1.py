@@ -111,7 +111,7 @@ def test_predictor_extrapolates_with_the_kinematic_model(smoothing, predicted, b
         d.connect(f"{name}.y", f"pred.{name}")
     d.add("flag", Function(lambda: predicted, inputs={}, outputs=Signal(dtype=bool)))
     d.connect("flag.y", "pred.predicted")
-    d.step()
+    d.compile(DT).step()
     # p + v τ + ½ a τ² with τ = 0.2 s, from the measurement only when smoothing is off and it was accepted
     expected = np.array(values[base][0]) + [2.0 + 2.0, -4.0, -1.0]
     np.testing.assert_allclose(pred.p_out.value, expected)

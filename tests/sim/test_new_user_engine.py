@@ -43,11 +43,11 @@ def _counter_loop() -> Diagram:
 
 
 def test_two_simulators_of_one_diagram_are_independent():
-    d = pop_sync(3, blender="deliverable")
+    d = pop_sync(3, motion="mean", blender="deliverable")
     a, b = Simulator(d), Simulator(d)
     first = a.run(n_steps=200)["r"]
     second = b.run(n_steps=200)["r"]
-    fresh = Simulator(pop_sync(3, blender="deliverable")).run(n_steps=300)["r"]
+    fresh = Simulator(pop_sync(3, motion="mean", blender="deliverable")).run(n_steps=300)["r"]
     np.testing.assert_array_equal(first, fresh[:200])
     np.testing.assert_array_equal(second, fresh[:200])
     # interleaved runs continue each plan from its own state
@@ -164,7 +164,7 @@ def test_changing_a_sub_diagram_makes_the_outer_plans_stale():
 
 
 def test_load_state_dict_checks_everything_before_changing_anything():
-    sim = Simulator(pop_sync(3, blender="deliverable"))
+    sim = Simulator(pop_sync(3, motion="mean", blender="deliverable"))
     sim.run(n_steps=50)
     snap = sim.state_dict()
     sim.run(n_steps=10)
@@ -202,7 +202,7 @@ def test_a_snapshot_of_another_diagram_is_refused_as_a_whole():
         ValueError,
         match=r"another diagram: only in the snapshot \['group', .*only in this diagram \['c', 'p', 'x'\]",
     ):
-        Simulator(_counter_loop()).load_state_dict(Simulator(pop_sync(1, blender="deliverable")).state_dict())
+        Simulator(_counter_loop()).load_state_dict(Simulator(pop_sync(1, motion="mean", blender="deliverable")).state_dict())
 
 
 class _Noisy(Block):
@@ -224,7 +224,7 @@ class _Noisy(Block):
 
 
 def test_snapshot_file_reloads_bit_exact(tmp_path):
-    d = pop_sync(2, blender="deliverable")
+    d = pop_sync(2, motion="mean", blender="deliverable")
     d.add("noise", _Noisy())
     d.add("pn", Probe())
     d.connect("noise.y", "pn.u")
@@ -337,7 +337,7 @@ def test_diagram_repr_lists_blocks_and_exposed_ports():
 
 
 def test_draw_writes_text_formats_and_renders_pictures_with_graphviz(tmp_path):
-    d = pop_sync(1, blender="deliverable")
+    d = pop_sync(1, motion="mean", blender="deliverable")
     d.draw(tmp_path / "d.dot")
     d.draw(tmp_path / "d.mmd")
     assert (tmp_path / "d.dot").read_text().strip() == d.to_dot()

@@ -9,14 +9,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.io
 import torch
 
 from cogblocks.amplification import load_encoder
 from cogblocks.amplification.corrector import load_corrector
+from cogblocks.amplification.encoder import EncoderNet
 from cogblocks.amplification.judges import load_ensemble
+from cogblocks.amplification.solution import solution_table
 from cogblocks.amplification.subspace import MovementSubspace, load_subspace
 from cogblocks.blocks import Constant, Integrator
-from cogblocks.data.loaders import load_csv, load_npz, save_csv, save_npz
+from cogblocks.data.loaders import load_csv, load_npz, load_velocity_data_mat, save_csv, save_npz
 from cogblocks.data.reach import generate_reach_library
 from cogblocks.experiments.files import load_diagram, save_diagram
 from cogblocks.sim import Diagram, Simulator, Trace
@@ -48,6 +51,17 @@ def _library(path, save):
     save(generate_reach_library(0, n_subjects=2, n_fear=2, n_no_fear=2), path)
 
 
+def _mat_library(path):
+    """The MATLAB layout of the real data: one participant, a struct array of three baseline trials."""
+    fields = ("Condition", "Phase", "Subphase", "Vxyzf", "Trial_Number")
+    trials = np.empty((1, 3), dtype=[(field, object) for field in fields])
+    for k in range(3):
+        velocity = np.random.default_rng(k).normal(0.0, 300.0, (40, 3))
+        for field, value in zip(fields, (0, "BASELINE", 1, velocity, k + 1), strict=True):
+            trials[0, k][field] = value
+    scipy.io.savemat(path, {"VelocityData": {"P01": trials}})
+
+
 def _subspace(path):
     MovementSubspace(np.zeros(3), np.eye(2, 3), 0.5, 1).save(path)
 
@@ -59,6 +73,7 @@ READERS = {
     "diagram": (".json", lambda p: save_diagram(_diagram(), p), load_diagram),
     "library npz": (".npz", lambda p: _library(p, save_npz), load_npz),
     "library csv": (".csv", lambda p: _library(p, save_csv), load_csv),
+    "library mat": (".mat", _mat_library, load_velocity_data_mat),
     "subspace": (".npz", _subspace, load_subspace),
     "encoder weights": (".pt", lambda p: shutil.copy(WEIGHTS / "encoder.pt", p), load_encoder),
     "corrector weights": (".pt", lambda p: shutil.copy(WEIGHTS / "corrector.pt", p), load_corrector),
@@ -75,6 +90,8 @@ def _wrong_type(path, suffix):
         path.write_text(json.dumps([1, 2, 3]))
     elif suffix == ".pt":
         torch.save(torch.zeros(3), path)
+    elif suffix == ".mat":
+        scipy.io.savemat(path, {"Kinematics": np.zeros(3)})
     elif suffix == ".parquet":
         import pyarrow as pa
         import pyarrow.parquet as pq
@@ -87,13 +104,7 @@ def _wrong_type(path, suffix):
 CORRUPTIONS = ["truncated", "empty", "garbage", "wrong type", "pickle"]
 
 
-@pytest.mark.parametrize("corruption", CORRUPTIONS)
-@pytest.mark.parametrize("reader", sorted(READERS))
-def test_a_bad_file_is_named_with_what_is_wrong(tmp_path, reader, corruption):
-    suffix, write, read = READERS[reader]
-    path = tmp_path / f"file{suffix}"
-    write(path)
-    read(path)  # the valid file reads
+def _corrupt(path, corruption, suffix):
     good = path.read_bytes()
     if corruption == "truncated":
         path.write_bytes(good[: len(good) // 2])
@@ -105,6 +116,16 @@ def test_a_bad_file_is_named_with_what_is_wrong(tmp_path, reader, corruption):
         path.write_bytes(pickle.dumps({"a": object.__name__}))  # what an unsafe reader would execute
     else:
         _wrong_type(path, suffix)
+
+
+@pytest.mark.parametrize("corruption", CORRUPTIONS)
+@pytest.mark.parametrize("reader", sorted(READERS))
+def test_a_bad_file_is_named_with_what_is_wrong(tmp_path, reader, corruption):
+    suffix, write, read = READERS[reader]
+    path = tmp_path / f"file{suffix}"
+    write(path)
+    read(path)  # the valid file reads
+    _corrupt(path, corruption, suffix)
     with pytest.raises((ValueError, OSError)) as caught:
         read(path)
     error = caught.value
@@ -113,3 +134,21 @@ def test_a_bad_file_is_named_with_what_is_wrong(tmp_path, reader, corruption):
     assert "allow_pickle" not in message and "weights_only" not in message, message
     assert not isinstance(error, (zipfile.BadZipFile, json.JSONDecodeError, pickle.UnpicklingError, UnicodeError))
     assert type(error) not in (ValueError, OSError) or len(message) > len(str(path)) + 5  # it says what is wrong
+
+
+@pytest.mark.parametrize("corruption", CORRUPTIONS)
+def test_a_bad_solution_cache_is_named_and_rebuilt(tmp_path, corruption):
+    """The w̃ cache is the project's own file, so a bad one is not an error: it is named in a warning and rebuilt."""
+    torch.manual_seed(0)
+    network = EncoderNet(hidden=4).double().eval()
+    library = generate_reach_library(0, n_subjects=2, n_fear=2, n_no_fear=2)
+    first = solution_table(network, library, grid_points=4, cache_dir=tmp_path)
+    (path,) = tmp_path.glob("w_tilde_*.npz")
+    _corrupt(path, corruption, ".npz")
+    with pytest.warns(UserWarning, match="corrupt w̃ cache file") as record:
+        again = solution_table(network, library, grid_points=4, cache_dir=tmp_path)
+    message = str(record[0].message)
+    assert str(path) in message and "allow_pickle" not in message, message
+    np.testing.assert_array_equal(again.values, first.values)
+    with np.load(path) as rebuilt:
+        np.testing.assert_array_equal(rebuilt["values"], first.values)

@@ -8,7 +8,7 @@ import pytest
 
 from cogblocks.blocks import Playback
 from cogblocks.sim import Diagram, DiagramError, Simulator
-from cogblocks.sync import DELIVERABLE_BLENDER, Blender
+from cogblocks.sync import DELIVERABLE, Blender
 
 
 def run_blender(theta_l0, theta_ref, dt=0.01, **params):
@@ -41,9 +41,9 @@ def test_alteration_never_exceeds_lambda_and_lambda_stays_in_bounds():
     ref = np.cumsum(rng.normal(0.05, 0.2, 2000))
     l2, lam = run_blender(l0, ref)
     assert np.all(circ(l2, l0) <= lam + 1e-12)
-    p = DELIVERABLE_BLENDER
-    assert np.all((lam >= p["lam_min"] - 1e-12) & (lam <= p["lam_max"] + 1e-12))
-    assert lam[0] == pytest.approx(p["lam_max"])
+    p = DELIVERABLE
+    assert np.all((lam >= p.lam_min - 1e-12) & (lam <= p.lam_max + 1e-12))
+    assert lam[0] == pytest.approx(p.lam_max)
 
 
 def test_lambda_settles_where_lambda_inf_meets_the_bisector():
@@ -130,3 +130,18 @@ def test_unstable_equilibrium_at_the_limit_is_refused():
     params = dict(lam_min=0.1, lam_max=1.4, e_max=0.2, kappa_plus=3.0, kappa_minus=5.0)
     with pytest.raises(DiagramError, match=r"bl: the equilibrium at the limit λ\* = .* is unstable"):
         run_blender(np.zeros(3), np.zeros(3), dt=0.1, **params)
+
+
+def test_the_deprecated_dict_gives_the_deliverables_values_and_names_the_parameter_object():
+    with pytest.warns(DeprecationWarning, match="DELIVERABLE_BLENDER is deprecated: use cogblocks.sync.DELIVERABLE"):
+        from cogblocks.sync import DELIVERABLE_BLENDER
+    # section 5.2.3.2: λ_min = e_max = 0.3·π/2, λ_max = π/2, κ⁺ = 1, κ⁻ = 2.5
+    assert DELIVERABLE_BLENDER == pytest.approx(
+        {
+            "lam_min": 0.3 * math.pi / 2,
+            "lam_max": math.pi / 2,
+            "e_max": 0.3 * math.pi / 2,
+            "kappa_plus": 1.0,
+            "kappa_minus": 2.5,
+        }
+    )

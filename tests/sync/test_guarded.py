@@ -8,15 +8,19 @@ import numpy as np
 import pytest
 
 from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
-from cogblocks.diagrams.sync import MOTIONS, pop_sync
+from cogblocks.diagrams.sync import pop_sync
 from cogblocks.sim import Diagram, Simulator
-from cogblocks.sync import GuardedPacingMotion
-from cogblocks.sync.guarded import phase_error
+from cogblocks.sync.guarded import GuardedPacingMotion, phase_error
 from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.pacing import MEAN, NONE, PACE, euler_step, predicted_order
 from cogblocks.sync.staged import StagedPrediction
 
 BLENDER = BlenderParams()
+
+
+def _trial(group: SyncGroup) -> GuardedPacingMotion:
+    """What the retired name ``guard`` builds: the guard told the trial's length."""
+    return GuardedPacingMotion.for_trial(group.n, group.assisted, adjacency=group.graph, end=group.duration)
 
 
 def _problem():
@@ -102,7 +106,7 @@ def _closed_loop(group: SyncGroup, block: GuardedPacingMotion, seconds: float, r
 def test_work_per_tick_is_bounded_and_a_decision_applies_one_period_after_it_starts():
     group = TABLE2[1]
     block = GuardedPacingMotion(
-        group.n, group.assisted, adjacency=group.graph, decide_every=50, first_period=50, horizon=5.0
+        group.n, group.assisted, adjacency=group.graph, decide_every=0.5, first_period=50, horizon=5.0
     )
     record: list[int] = []
     _closed_loop(group, block, 4.0, record)
@@ -132,9 +136,9 @@ def test_the_first_decision_comes_after_half_a_period_then_decisions_come_every_
     """Until a check has passed, periods are ``first_period`` ticks: trusted at tick 100, the first decision is checked
     and applied at 150 (not 200), and later ones every 100 ticks; before 150 the participant is left unaltered."""
     group = TABLE2[1]
-    # the class's own periods (MOTIONS["guard"], for_trial, decides every 10 s): predictions stop at the group's 10 s
+    # the class's own periods (for_trial, decides every 10 s): predictions stop at the group's 10 s
     block = GuardedPacingMotion(group.n, group.assisted, adjacency=group.graph, end=group.duration)
-    assert block.first_period == 50 and block.decide_every == 100 and block.end == group.duration
+    assert block.first_period == 50 and block.decide_ticks == 100 and block.end == group.duration
     starts, record = _start_ticks(block), []
     trace = _closed_loop(group, block, 4.0, record)
     assert starts == [100, 150, 250, 350]
@@ -149,18 +153,19 @@ def test_the_first_decision_comes_after_half_a_period_then_decisions_come_every_
 
 
 def test_the_default_policy_predicts_to_the_trials_end_at_the_groups_own_step():
-    """``MOTIONS["guard"]`` is ``for_trial``: trusted at tick 100, decisions start at 100 (a 3 s first period) and 400
-    (then every 10 s), and each fan-out scores its candidates at 10 ms steps up to the trial's end, not 20 s."""
+    """The retired name ``guard`` builds ``for_trial``: trusted at tick 100, decisions start at 100 (a 3 s first
+    period) and 400 (then every 10 s), and each fan-out scores its candidates at 10 ms steps up to the trial's end,
+    not 20 s."""
     group = TABLE2[2]  # 300 s
-    block = MOTIONS["guard"](group)
+    block = _trial(group)
     assert (block.end, block.step, block.decide_every, block.early, block.margin) == (
         group.duration,
         0.01,
-        1000,
+        10.0,
         None,
         0,
     )
-    assert block.first_period == 300 and MOTIONS["guard"](TABLE2[1]).first_period == 100  # 30 000 steps over 300 ticks
+    assert block.first_period == 300 and _trial(TABLE2[1]).first_period == 100  # 30 000 steps over 300 ticks
     jobs = []
     start = block._start
 
@@ -233,7 +238,7 @@ def test_the_guard_falls_back_when_the_model_predicts_badly():
     theta = np.mod(np.cumsum(rates * 0.01, axis=0), 2 * np.pi)
     lam = np.full(ticks, 1.0)
     block = GuardedPacingMotion(
-        n, 0, decide_every=50, first_period=50, horizon=2.0, fallback="mean", margin=0.0, min_excitation=0.0
+        n, 0, decide_every=0.5, first_period=50, horizon=2.0, fallback="mean", margin=0.0, min_excitation=0.0
     )
     ref = _run_inputs(block, theta, lam)
     assert len(block.errors) >= 8 and min(block.errors) > block.tolerance
@@ -244,7 +249,7 @@ def test_the_guard_falls_back_when_the_model_predicts_badly():
     np.testing.assert_array_equal(ref[:first], theta[:first, 0])  # before: start="none", θ_ref = θ_L0
     # constant frequencies (an uncoupled group, which the model fits but for its prior's ~1e-5): every check passes
     smooth = np.mod(np.arange(ticks)[:, None] * 0.01 * np.array([2.0, 3.0, 3.5, 4.0]) + np.arange(n), 2 * np.pi)
-    calm = GuardedPacingMotion(n, 0, decide_every=50, horizon=2.0, fallback="mean", min_excitation=0.0)
+    calm = GuardedPacingMotion(n, 0, decide_every=0.5, horizon=2.0, fallback="mean", min_excitation=0.0)
     _run_inputs(calm, smooth, lam)
     assert max(calm.errors) < 1e-4 and -1 not in calm.choices
 
@@ -258,7 +263,7 @@ def test_bad_data_policy():
     theta[20, 1] = np.nan
     theta[70, 0] = 1e300
     lam[90] = np.inf
-    block = GuardedPacingMotion(n, 0, start="mean", min_ticks=10, min_excitation=0.0, decide_every=50, horizon=1.0)
+    block = GuardedPacingMotion(n, 0, start="mean", min_ticks=10, min_excitation=0.0, decide_every=0.5, horizon=1.0)
     ref = _run_inputs(block, theta, lam)
     assert np.isfinite(ref).all()
     assert ref[20] == ref[19] and ref[70] == ref[69]
@@ -271,7 +276,7 @@ def test_bad_data_policy():
 
 def test_guard_is_a_policy_of_the_held_out_runner_and_checks_its_parameters():
     group = SyncGroup("all", 4, 0.5, (2.0, 2.5, 3.0, 3.5), 1, 2.0, graph="all")
-    block = MOTIONS["guard"](group)
+    block = _trial(group)
     assert isinstance(block, GuardedPacingMotion)
     np.testing.assert_array_equal(block.adjacency, group.adjacency())
     with pytest.raises(ValueError, match="fallback must be one of"):

@@ -29,6 +29,7 @@ def test_a_swapped_blender_reaches_the_planner_and_gives_the_planner_told_figure
     assert 100 * (r_swapped.mean() - r_without) / r_without == pytest.approx(3.638, abs=0.01)
 
 
+@pytest.mark.filterwarnings("ignore:motion computer .* is retired:DeprecationWarning")  # retired names on purpose
 def test_every_predicting_motion_computer_of_motions_is_told_the_blender():
     for name in ("replan", "plan", "pace", "guard", "mpc", "dqn"):
         motion = pop_sync(1, blender="continuous", motion=name)["l2.motion"]

@@ -81,7 +81,7 @@ def test_mpc_raises_r_on_group_1():
     with_mpc = _r_mean(group, mpc, 1001)
     assert with_mpc > without * 1.05
     # one decision per period; the first waits for 5 identified increments (tick 5 instead of 0)
-    assert len(mpc.solve_ms) == 1 + 1000 // mpc.replan_every
+    assert len(mpc.solve_ms) == 1 + 1000 // mpc.decide_ticks
     assert mpc.plan[0] == pytest.approx(mpc.frequency(1000))
 
 
@@ -165,7 +165,7 @@ def test_mpc_spreads_each_solve_over_the_period_and_its_plan_beats_the_candidate
 def test_mpc_solve_cut_short_by_its_period_is_a_fallback_and_the_candidate_plan_stands():
     group = TABLE2[1]
     # a 2-tick period with one iteration per tick leaves one chunk per decision: most solves are cut short
-    mpc, sim, counter = _mpc_with_counter(group, replan_every=2, step=0.02, iterations_per_tick=1, max_iter=20)
+    mpc, sim, counter = _mpc_with_counter(group, decide_every=0.02, step=0.02, iterations_per_tick=1, max_iter=20)
     sim.run(n_steps=41)
     assert max(counter.calls) <= 1
     converged = sum(1 for c in counter.calls if c < 1)  # a chunk that stopped before its one iteration converged

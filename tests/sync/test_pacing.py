@@ -126,7 +126,7 @@ def _closed_loop(group: SyncGroup, block: PacingMotion, seconds: float):
 
 def test_it_identifies_the_group_online_and_decides_every_period():
     group = TABLE2[1]
-    block = PacingMotion(group.n, group.assisted, decide_every=100, horizon=5.0)
+    block = PacingMotion(group.n, group.assisted, decide_every=1.0, horizon=5.0)
     _closed_loop(group, block, 4.0)
     omega, gain = block.model()
     np.testing.assert_allclose(omega, group.omega, atol=1e-3)  # the prior biases by ~1e-5
@@ -187,9 +187,10 @@ def test_bad_data_policy():
     np.testing.assert_allclose(np.diff(np.unwrap(ref)), 0.03, atol=1e-12)
 
 
-def test_pace_is_a_policy_of_the_held_out_runner_and_follows_the_groups_graph():
+def test_the_retired_name_pace_still_builds_the_block_for_the_groups_graph_and_names_replan():
     group = SyncGroup("all", 4, 0.5, (2.0, 2.5, 3.0, 3.5), 1, 2.0, graph="all")
-    block = MOTIONS["pace"](group)
+    with pytest.warns(DeprecationWarning, match="motion computer 'pace' is retired: use 'replan'"):
+        block = MOTIONS["pace"](group)
     assert isinstance(block, PacingMotion)
     np.testing.assert_array_equal(block.adjacency, group.adjacency())
 

@@ -11,7 +11,7 @@ import torch
 from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
 from cogblocks.diagrams.sync import MOTIONS, pop_sync
 from cogblocks.sim import Diagram, Simulator
-from cogblocks.sync import DQNPolicy, MotionComputer, ShieldedMotion
+from cogblocks.sync import DQNPolicy, MotionComputer, OscillatorMotion, ShieldedMotion
 from cogblocks.sync.dqn_policy import NumpyDQNPolicy
 from cogblocks.sync.model import SyncModel, order_parameter
 from cogblocks.sync.motion import ACTIONS, OMEGA_L3_LIMIT, L3Context, l3_observation
@@ -29,8 +29,8 @@ class SteerPolicy:
         return 8 if math.sin(context.theta[0] - context.theta_l3) > 0.0 else 3
 
 
-def _motion(policy, n: int, assisted: int, gain: float, adjacency) -> MotionComputer:
-    return MotionComputer(policy, n=n, assisted=assisted, gain=gain, omega_init=2.0, adjacency=adjacency)
+def _motion(policy, n: int, assisted: int, gain: float, adjacency) -> OscillatorMotion:
+    return OscillatorMotion(policy, n=n, assisted=assisted, gain=gain, omega_init=2.0, adjacency=adjacency)
 
 
 def test_the_prediction_is_the_closed_loop_of_the_policy_and_of_doing_nothing_on_the_model():
@@ -108,18 +108,18 @@ def test_with_a_backup_every_prediction_is_done_by_the_next_decision():
     assert shield.job.backup_steps == round(9.0 / shield._stable_step(shield.model()[1]))
 
 
-@pytest.mark.parametrize("decide_every", [1, 2, 3, 7, 100])
+@pytest.mark.parametrize("ticks", [1, 2, 3, 7, 100])
 @pytest.mark.parametrize("backup", [0.0, 0.3])
-def test_a_prediction_is_done_within_its_period_for_any_period(decide_every, backup):
-    """``decide_every`` ticks' shares of the work finish a prediction, with or without a backup part."""
+def test_a_prediction_is_done_within_its_period_for_any_period(ticks, backup):
+    """A period's ticks' shares of the work finish a prediction, with or without a backup part."""
     n, gain = 4, 0.8
-    shield = ShieldedMotion(_motion(SteerPolicy(), n, 1, gain, "ring"), decide_every=decide_every, backup=backup)
-    rng = np.random.default_rng(decide_every)
+    shield = ShieldedMotion(_motion(SteerPolicy(), n, 1, gain, "ring"), decide_every=ticks * 0.01, backup=backup)
+    rng = np.random.default_rng(ticks)
     model = (rng.uniform(1.0, 3.0, n), gain)
     shield.job = job = shield._rollout(rng.uniform(0, 2 * np.pi, n), 1.0, model, 0, 0.01)
     assert job.backup_steps == round(backup / shield._stable_step(gain))
-    first = max(1, decide_every // 2) if backup else decide_every
-    for _ in range(decide_every):
+    first = max(1, ticks // 2) if backup else ticks
+    for _ in range(ticks):
         before = job.done_steps
         shield._advance_job()
         assert job.done_steps - before <= -(-job.steps // first)  # the work of a tick stays bounded
@@ -171,7 +171,7 @@ def test_it_emits_the_policys_reference_or_the_participants_own_phase_as_its_pre
     group = random_groups(12, "train", 0)[11]
     theta, lam = _recorded(group, 12.0)
     raw = _run(MOTIONS["dqn_raw"](group), theta, lam)
-    shield = ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, decide_every=50, horizon=1.0)
+    shield = ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, decide_every=0.5, horizon=1.0)
     modes: list[int] = []
     ref = _run(shield, theta, lam, modes)
     following = np.r_[False, np.array(modes[:-1]) == FOLLOW]
@@ -219,7 +219,7 @@ def test_bad_data_policy():
     theta[150, 1] = np.nan
     theta[160, 0] = 1e300
     lam[170] = np.inf
-    shield = ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, decide_every=50, horizon=0.5)
+    shield = ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, decide_every=0.5, horizon=0.5)
     modes: list[int] = []
     ref = _run(shield, theta, lam, modes)
     assert np.isfinite(ref).all()

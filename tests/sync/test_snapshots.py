@@ -10,6 +10,9 @@ from cogblocks.diagrams.sync import pop_sync
 from cogblocks.sim import Simulator
 from cogblocks.sync import MPCMotion
 
+# guard and pace are retired names, snapshotted here as long as they are built
+pytestmark = pytest.mark.filterwarnings("ignore:motion computer .* is retired:DeprecationWarning")
+
 PROBES = {"ref": "l2.theta_ref"}
 
 

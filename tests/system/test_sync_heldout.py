@@ -180,6 +180,7 @@ def test_cli_random_plot_draws_each_groups_change_against_the_bound(capsys, tmp_
         plot_heldout({"n_groups": 2, "seed": 0, "policies": []}, str(path))
 
 
+@pytest.mark.filterwarnings("ignore:motion computer .* is retired:DeprecationWarning")  # retired names on purpose
 def test_thorough_bound_is_the_tighter_yardstick():
     """``--thorough-bound`` judges against ``upper_bound(thorough=True)``, never below the default bound."""
     group = dataclasses.replace(TABLE2[1], duration=3.0)

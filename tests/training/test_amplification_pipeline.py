@@ -140,3 +140,15 @@ def test_load_library_converts_the_files_length_unit(library, tmp_path):
     np.testing.assert_allclose(loaded.position, library.position, rtol=1e-12, atol=1e-9)
     with pytest.raises(ValueError, match="unit 'px' is not a length unit"):
         load_library(tmp_path / "cm.csv", unit="px")
+
+
+def test_unit_of_a_library_file(library, tmp_path, capsys):
+    """``--unit`` reads the file's lengths in that unit: a file in cm trains on speeds ten times its numbers."""
+    assert main(["run", "amplification", "--unit", "m"]) == 2
+    assert "--unit applies to --library FILE only" in capsys.readouterr().err
+    path = tmp_path / "in_cm.csv"
+    save_csv(library, path)
+    report = run_pipeline(path, tmp_path / "out", unit="cm", limit=1, encoder_epochs=1, corrector_episodes=1, log=None)
+    moving = np.arange(library.velocity.shape[1]) < library.length[:, None]
+    speeds = 10.0 * np.linalg.norm(library.velocity, axis=-1)[moving]  # cm/s as mm/s
+    assert report["library"]["speed_rms_mm_s"] == pytest.approx(np.sqrt(np.mean(speeds**2)), rel=1e-9)

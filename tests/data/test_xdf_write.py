@@ -7,7 +7,7 @@ import pytest
 
 pyxdf = pytest.importorskip("pyxdf", reason="the recordings extra (pyxdf) is not installed")
 
-from cogblocks.live.xdf import RecordingError, XDFStream, write_xdf  # noqa: E402
+from cogblocks.data.xdf_write import RecordingError, XDFStream, write_xdf  # noqa: E402
 
 
 def _streams(rng):
