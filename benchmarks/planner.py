@@ -12,6 +12,8 @@ blender law's generic functions), which decide the same bit for bit (``tests/syn
 * ``planner.largest.decide_p50_s`` / ``decide_p99_s``: the later decisions, likewise.
 * ``planner.largest.total_s``: all decisions; ``identical`` says whether every replayed plan equals, bit for bit,
   the plain formulations' one.
+* ``planner.largest_300s.*``: the same for the first ``LONG_SIMULATED`` seconds (``quick``: 10) of that group's
+  trial stretched to 300 s, where every decision plans up to 300 s ahead (the decisions that cost the most).
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ from cogblocks.sync.model import DT
 
 #: Seconds of the trial (``quick``: 20).
 DURATION = 60.0
+#: Seconds simulated of the 300 s trial (``quick``: 10): its first decisions, each planning to its end.
+LONG_SIMULATED = 30.0
 
 
 def _plain_rollout(roll: ca.Function, x0: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -107,10 +111,9 @@ def _replay(group, tasks: list, plain: bool) -> tuple[list[float], list]:
             setattr(module, name, value)
 
 
-def run(quick: bool = False) -> Iterator[dict]:
-    """Yield the decisions' CPU time against the plain formulations', replayed on the same tasks."""
+def _case(label: str, duration: float, simulated: float) -> Iterator[dict]:
     group = max(random_groups(20, "validation", 0), key=lambda g: (g.n, g.graph_kind == "all"))
-    group = dataclasses.replace(group, duration=20.0 if quick else DURATION)
+    group = dataclasses.replace(group, duration=duration)
     tasks = []
     original = receding.RecedingPlanMotion._decide
 
@@ -120,7 +123,7 @@ def run(quick: bool = False) -> Iterator[dict]:
 
     receding.RecedingPlanMotion._decide = record
     try:
-        Simulator(pop_sync(group, motion=MOTIONS["replan"](group))).run(n_steps=round(group.duration / DT) + 1)
+        Simulator(pop_sync(group, motion=MOTIONS["replan"](group))).run(n_steps=round(simulated / DT) + 1)
     finally:
         receding.RecedingPlanMotion._decide = original
     fast, fast_plans = _replay(group, tasks, plain=False)
@@ -129,8 +132,8 @@ def run(quick: bool = False) -> Iterator[dict]:
         a[2] == b[2] and all(np.array_equal(a[j], b[j]) for j in (0, 1, 3))
         for a, b in zip(fast_plans, plain_plans, strict=True)
     )
-    context = {"n": group.n, "graph": group.graph_kind, "duration_s": group.duration, "decisions": len(tasks)}
-    context["identical"] = identical
+    context = {"n": group.n, "graph": group.graph_kind, "duration_s": group.duration, "simulated_s": simulated}
+    context |= {"decisions": len(tasks), "identical": identical}
     stats = {
         "first_s": (fast[0], plain[0]),
         "decide_p50_s": (np.percentile(fast[1:], 50), np.percentile(plain[1:], 50)),
@@ -139,9 +142,16 @@ def run(quick: bool = False) -> Iterator[dict]:
     }
     for stat, (value, reference) in stats.items():
         yield {
-            "name": f"planner.largest.{stat}",
+            "name": f"planner.{label}.{stat}",
             "value": float(value),
             "unit": "s",
             "reference": float(reference),
             "ratio": float(value) / float(reference),
         } | context
+
+
+def run(quick: bool = False) -> Iterator[dict]:
+    """Yield the decisions' CPU time against the plain formulations', replayed on the same tasks."""
+    duration = 20.0 if quick else DURATION
+    yield from _case("largest", duration, duration)
+    yield from _case("largest_300s", 300.0, 10.0 if quick else LONG_SIMULATED)
