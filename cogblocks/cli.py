@@ -197,7 +197,7 @@ def _build_parser() -> argparse.ArgumentParser:
         action="append",
         type=POLICY,
         metavar="NAME",
-        help="motion computer(s) to run: dqn, dqn_raw, lookahead, mean, mpc, plan, replan "
+        help="motion computer(s) to run: dqn, dqn_raw, gated, lookahead, mean, mpc, plan, replan "
         "(default: dqn, lookahead, mean and pop_sync's default, replan; with --random every one listed); "
         "retired, with a warning: guard, pace; repeatable; "
         "with several, --plot FILE draws one figure per policy, FILE-<policy>",

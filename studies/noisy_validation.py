@@ -1,7 +1,7 @@
 """Validation runs of the noisy groups (never the test split): one JSON file per call, rows per group.
 
-python studies/noisy_validation.py OUT.json --policies replan mean dqn guard [--bound] [--noise-free]
-    [--domain position] [--groups 16] [--max-duration 60]
+python studies/noisy_validation.py OUT.json --policies replan mean dqn guard [--bound [--thorough]] [--noise-free]
+    [--domain position] [--groups 16] [--max-duration 60] [--blender continuous]
 """
 
 from __future__ import annotations
@@ -10,21 +10,19 @@ import argparse
 import json
 import time
 
-from cogblocks.diagrams.sync import MOTIONS
 from cogblocks.evaluation.sync_heldout import heldout_table
-from cogblocks.sync.gated import noise_gated
 
 parser = argparse.ArgumentParser()
 parser.add_argument("out")
 parser.add_argument("--policies", nargs="+", default=["mean"])
 parser.add_argument("--bound", action="store_true")
+parser.add_argument("--thorough", action="store_true", help="the thorough bound (about 3x the CPU)")
 parser.add_argument("--noise-free", action="store_true")
 parser.add_argument("--domain", default="phase")
 parser.add_argument("--groups", type=int, default=16)
 parser.add_argument("--max-duration", type=float, default=60.0)
+parser.add_argument("--blender", default="continuous")
 args = parser.parse_args()
-# "gated": replan behind the noise gate (not in the library's MOTIONS yet: the lead decides on the default)
-MOTIONS["gated"] = lambda g: noise_gated(MOTIONS["replan"](g), g.n, g.assisted, adjacency=g.graph)
 start = time.process_time()
 table = heldout_table(
     args.groups,
@@ -34,8 +32,10 @@ table = heldout_table(
     max_duration=args.max_duration,
     split="validation",
     bound=args.bound,
+    thorough=args.thorough,
     noise=not args.noise_free,
     domain=args.domain,
+    blender=args.blender,
 )
 table["cpu_s"] = time.process_time() - start
 table["argv"] = vars(args)

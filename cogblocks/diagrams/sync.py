@@ -202,8 +202,10 @@ def sync_table(
     Yields first ``{"group", "domain", "r_without"}``, then one row ``{"policy", "r_with",
     "change_pct", "mean_dev_rad", "max_dev_rad", "max_step_rad", "jumps_per_min", "peak_speed_ratio"}``
     per motion computer (the position domain adds ``position_peak_speed_ratio`` and
-    ``position_rms_jerk_ratio``; see :mod:`cogblocks.diagrams.naturalness`). Progress bars are named
-    after the group and the run (``progress`` as in :func:`simulate`); ``blender`` as in :func:`pop_sync`.
+    ``position_rms_jerk_ratio``; see :mod:`cogblocks.diagrams.naturalness`; a motion computer with a ``world``,
+    :class:`~cogblocks.sync.GatedMotion`, adds ``"world"``, what it believed at the end of the run). Progress
+    bars are named after the group and the run (``progress`` as in :func:`simulate`); ``blender`` as in
+    :func:`pop_sync`.
     """
     params, motions = _checked(group, motions, duration)
     number = group if isinstance(group, int) else params.name
@@ -218,7 +220,7 @@ def sync_table(
         trace = simulate(diagram, n_steps, probes, label=label, progress=progress)
         r_with = float(trace["r"].mean())
         dev = np.abs(wrap_pi(trace["theta_l2"] - trace["theta_l0"]))
-        yield {
+        row = {
             "policy": name,
             "r_with": r_with,
             "change_pct": 100.0 * (r_with - r_without) / r_without,
@@ -226,6 +228,10 @@ def sync_table(
             "max_dev_rad": float(dev.max()),
             **sync_naturalness(trace, params.assisted if domain == "position" else None),
         }
+        world = getattr(diagram["l2.motion"], "world", None)
+        if world is not None:  # a motion computer that tells which world it found itself in (GatedMotion)
+            row["world"] = world
+        yield row
 
 
 def run_sync(

@@ -76,6 +76,13 @@ def _replan_motion(group: SyncGroup) -> Block:
     )
 
 
+def _gated_motion(group: SyncGroup) -> Block:
+    from cogblocks.sync import GatedMotion
+
+    # replan while the group's own prediction errors say it is the deterministic model, else the circular mean
+    return GatedMotion(_replan_motion(group))
+
+
 def _guard_motion(group: SyncGroup) -> Block:
     from cogblocks.sync.guarded import GuardedPacingMotion
 
@@ -112,13 +119,16 @@ class MotionRegistry(dict):
 #: ``dqn_raw`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --randomised --seed 0``), ``dqn`` the
 #: same behind a shield (followed only while a prediction on the group identified online says it does not lower r);
 #: ``lookahead`` plans 25 ticks ahead on the true model; ``mean`` follows the others' circular mean; ``mpc`` plans the
-#: reference's frequency 3 s ahead on the identified model. Add an entry to make a policy available to
-#: :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line. Retired: ``guard`` and ``pace``
-#: (:attr:`MotionRegistry.retired`), which the planner beats on the held-out groups.
+#: reference's frequency 3 s ahead on the identified model; ``gated`` is ``replan`` behind a
+#: :class:`~cogblocks.sync.GatedMotion`, which switches to the circular mean once the group's one-tick prediction
+#: errors say it is noisy (people, estimated phases) and reports the world it found. Add an entry to make a policy
+#: available to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line. Retired: ``guard``
+#: and ``pace`` (:attr:`MotionRegistry.retired`), which the planner beats on the held-out groups.
 MOTIONS = MotionRegistry(
     {
         "dqn": _dqn_motion,
         "dqn_raw": _dqn_raw_motion,
+        "gated": _gated_motion,
         "lookahead": _lookahead_motion,
         "mean": _mean_motion,
         "mpc": _mpc_motion,

@@ -73,7 +73,9 @@ def summarise(rows: list[dict[str, Any]], policies: list[str]) -> list[dict[str,
 
     Naturalness over the groups (:mod:`cogblocks.diagrams.naturalness`): ``max_step_rad`` (the largest per-tick
     change of wrap(θ_L2 − θ_L0) on any group), ``mean_jumps_per_min``, ``jump_free_share`` (share of groups
-    without a jump) and ``max_peak_speed_ratio`` (the largest of the groups' peak phase speed ratios).
+    without a jump) and ``max_peak_speed_ratio`` (the largest of the groups' peak phase speed ratios). A motion
+    computer that reports its world (:class:`~cogblocks.sync.GatedMotion`) adds ``noisy_share``, the share of
+    groups it found noisy.
     """
     summary = []
     for policy in policies:
@@ -93,6 +95,9 @@ def summarise(rows: list[dict[str, Any]], policies: list[str]) -> list[dict[str,
                 **_naturalness_summary(results),
             }
         )
+        worlds = [r["world"] for r in results if "world" in r]
+        if worlds:  # a motion computer that says which world it found (GatedMotion): how often it found noise
+            summary[-1]["noisy_share"] = float(np.mean([w == "noisy" for w in worlds]))
     return summary
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -21,7 +22,21 @@ _LIBRARY_ONLY = {
     "--dt": "dt",
     "--unit": "unit",
 }
+#: Options that only the bundled library's run reads (the whole chain on a file has no step limit).
+_BUNDLED_ONLY = {"--step-limit": "step_limit"}
 _LIBRARY_SUFFIXES = (".mat", ".npz", ".csv")
+
+
+def _step_limit(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a multiple of the human's largest step (> 0), got {text!r}"
+        ) from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a multiple of the human's largest step (> 0), got {text}")
+    return value
 
 
 def _library_file(text: str) -> str:
@@ -50,6 +65,13 @@ def add_amplification_parser(targets: Any, common: Callable[[argparse.ArgumentPa
         help="variant(s) to run (default: all three); 'optimised' is the casadi blending; repeatable",
     )
     amplification.add_argument(
+        "--step-limit",
+        type=_step_limit,
+        metavar="FACTOR",
+        help="limit the altered velocity's per-tick step to FACTOR × the human's largest so far (VelocityStepLimiter; "
+        "1 keeps it within the human's own); default: no limit",
+    )
+    amplification.add_argument(
         "--library", type=_library_file, metavar="FILE", help="run the whole chain on FILE (.mat, .npz, .csv)"
     )
     amplification.add_argument(
@@ -75,6 +97,9 @@ def _percent(x: float | None) -> str:
 
 def _run_amplification(args: argparse.Namespace) -> int:
     if args.library is not None:
+        given = [option for option, value in _BUNDLED_ONLY.items() if getattr(args, value) is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)} applies to the bundled library only, not to --library FILE")
         return _run_amplification_pipeline(args)
     given = [option for option, value in _LIBRARY_ONLY.items() if getattr(args, value) not in (None, False)]
     if given:
@@ -82,8 +107,9 @@ def _run_amplification(args: argparse.Namespace) -> int:
     from cogblocks.diagrams.amplification import PAPER, plot_amplification, run_amplification
 
     variants = ("blend", "blend_rl", "optimised") if args.variant is None else tuple(args.variant)
-    result = run_amplification(variants)
-    result["e_des_0"] = run_amplification(variants, e_des=0)  # the other direction: remove fear
+    result = run_amplification(variants, step_limit=args.step_limit)
+    # the other direction: remove fear
+    result["e_des_0"] = run_amplification(variants, e_des=0, step_limit=args.step_limit)
 
     def judged(row: dict[str, Any]) -> str:
         shares = ", ".join(f"{name} {_percent(share)}" for name, share in row["judges"].items())

@@ -23,6 +23,7 @@ from cogblocks.sync.stability import LambdaReport, check_blender, lambda_report
 
 _LAZY = {
     "DQNPolicy": "cogblocks.sync.dqn_policy",
+    "GatedMotion": "cogblocks.sync.gated",
     "GroupIdentifier": "cogblocks.sync.identification",
     "GuardedPacingMotion": "cogblocks.sync.guarded",
     "MPCMotion": "cogblocks.sync.mpc",
@@ -41,6 +42,7 @@ __all__ = [
     "Blender",
     "BlenderParams",
     "DQNPolicy",
+    "GatedMotion",
     "GroupIdentifier",
     "KuramotoGroup",
     "KuramotoOscillator",

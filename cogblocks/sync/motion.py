@@ -136,11 +136,12 @@ class MotionComputer(Block):
     -----
     Implementations: :class:`OscillatorMotion` (the deliverable's virtual oscillator, steered by an
     L3 policy), :class:`MeanPhaseMotion`, :class:`~cogblocks.sync.receding.RecedingPlanMotion` (the
-    planner), :class:`~cogblocks.sync.mpc.MPCMotion`, and the shield
-    :class:`~cogblocks.sync.shielded.ShieldedMotion` around an oscillator; ``cogblocks.diagrams.sync.MOTIONS``
-    names their presets. ``MotionComputer(policy, n=..., ...)``, the name's earlier meaning, still builds
-    an :class:`OscillatorMotion`, with a :class:`DeprecationWarning`; ``MotionComputer(n, assisted)`` is a
-    block with the role's ports that holds θ_ref at 0.
+    planner; :func:`~cogblocks.sync.planned.whole_trial_plan` is its one-decision preset),
+    :class:`~cogblocks.sync.mpc.MPCMotion`, and the shield :class:`~cogblocks.sync.shielded.ShieldedMotion`
+    around an oscillator; ``cogblocks.diagrams.sync.MOTIONS`` names their presets.
+    ``MotionComputer(policy, n=..., ...)``, the name's earlier meaning, still builds an :class:`OscillatorMotion`,
+    with a :class:`DeprecationWarning`; ``MotionComputer(n, assisted)`` is a block with the role's ports that
+    holds θ_ref at 0.
 
     Bad data policy: the role's own block ignores its inputs, so NaN or inf in them never reaches
     θ_ref; each implementation states its own policy.

@@ -1,9 +1,47 @@
-"""The held-out table hands every group to ``progress`` as it is done, in any order, and keeps the groups' order."""
+"""The held-out table: every group handed to ``progress`` as it is done, in the groups' order; a motion computer
+that says which world it found is counted."""
+
+from __future__ import annotations
 
 import dataclasses
 
-from cogblocks.data.groups import random_groups
-from cogblocks.evaluation.sync_heldout import evaluate_group, heldout_table
+import pytest
+
+from cogblocks.data.groups import GroupNoise, SyncGroup, random_groups
+from cogblocks.diagrams.sync import run_sync
+from cogblocks.evaluation.sync_heldout import evaluate_group, heldout_table, summarise
+from cogblocks.sync import GatedMotion, MeanPhaseMotion
+
+GROUP = SyncGroup("ring of 5", 5, 0.8, (2.0, 2.5, 3.0, 3.5, 4.0), 1, 3.0)
+NOISY = dataclasses.replace(GROUP, noise=GroupNoise(sigma=(0.3,) * 5, drift_spread=(0.1,) * 5, drift_tau=8.0, seed=1))
+
+
+@pytest.mark.parametrize(("group", "world"), [(GROUP, "model"), (NOISY, "noisy")])
+def test_run_sync_reports_the_world_a_gated_motion_found(group, world):
+    gated = GatedMotion(MeanPhaseMotion(group.n, group.assisted), adjacency=group.graph)
+    rows = run_sync(group, [gated, "mean"])["results"]
+    assert rows[0]["world"] == world and "world" not in rows[1]
+
+
+def test_the_summary_counts_the_groups_found_noisy():
+    rows = [
+        {"results": [{"policy": "g", "change_pct": c, "bound_fraction": None, "world": w, **_natural()}]}
+        for c, w in ((1.0, "noisy"), (-1.0, "model"), (2.0, "noisy"), (0.5, "undecided"))
+    ]
+    (summary,) = summarise(rows, ["g"])
+    assert summary["noisy_share"] == 0.5 and summary["lowered_share"] == 0.25
+    without = [{"results": [{k: v for k, v in row["results"][0].items() if k != "world"}]} for row in rows]
+    assert "noisy_share" not in summarise(without, ["g"])[0]
+
+
+def _natural() -> dict:
+    return {
+        "mean_dev_rad": 0.1,
+        "max_dev_rad": 0.2,
+        "max_step_rad": 0.01,
+        "jumps_per_min": 0.0,
+        "peak_speed_ratio": 1.1,
+    }
 
 
 def test_progress_sees_every_group_once_and_the_table_keeps_their_order():

@@ -27,3 +27,28 @@ def test_a_folder_given_as_a_library_is_called_a_folder(capsys, tmp_path):
     assert "argument --library" in (err := capsys.readouterr().err) and "is a folder" in err
     with pytest.raises(ValueError, match=r"is a folder: give a library file"):
         load_library(tmp_path)
+
+
+def test_the_step_limit_reaches_both_directions_of_the_bundled_run(capsys, monkeypatch):
+    import cogblocks.diagrams.amplification as amplification
+
+    calls = []
+    monkeypatch.setattr(amplification, "run_amplification", lambda variants, **options: calls.append(options) or {})
+    assert main(["run", "amplification", "--variant", "blend", "--step-limit", "1.5", "--json"]) == 0
+    assert calls == [{"step_limit": 1.5}, {"e_des": 0, "step_limit": 1.5}]
+    capsys.readouterr()
+    assert main(["run", "amplification", "--variant", "blend", "--json"]) == 0
+    assert calls[-1] == {"e_des": 0, "step_limit": None}
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "fast"])
+def test_a_step_limit_that_is_not_a_positive_factor_is_refused(capsys, value):
+    assert main(["run", "amplification", "--step-limit", value]) == 2
+    assert "argument --step-limit" in capsys.readouterr().err
+
+
+def test_the_step_limit_is_refused_with_a_library(capsys, tmp_path):
+    library = tmp_path / "lib.npz"
+    library.write_bytes(b"")
+    assert main(["run", "amplification", "--library", str(library), "--step-limit", "1", "--out", str(tmp_path)]) == 2
+    assert "--step-limit applies to the bundled library only" in capsys.readouterr().err

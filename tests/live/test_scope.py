@@ -128,7 +128,7 @@ def test_view_refuses_what_it_cannot_show(tmp_path):
     with pytest.raises(ValueError, match=r"run\.csv: no such file"):
         load_run(tmp_path / "run.csv")
     (tmp_path / "run.csv").write_text("t\n0\n")
-    with pytest.raises(ValueError, match=r"run\.csv: cogblocks view shows \.npz traces and \.xdf sessions, not \.csv"):
+    with pytest.raises(ValueError, match=r"run\.csv: cogblocks view shows \.npz traces and \.xdf files, not \.csv"):
         load_run(tmp_path / "run.csv")
     np.savez(tmp_path / "other.npz", x=np.zeros(3))
     with pytest.raises(ValueError, match=r"other\.npz: holds no trace"):

@@ -895,6 +895,41 @@ def register_shielded() -> None:
 
 register_shielded()
 
+
+@st.composite
+def gated_motion(draw):
+    from cogblocks.sync import GatedMotion
+    from cogblocks.sync.gated import FALLBACKS
+
+    if draw(st.booleans()):
+        model = draw(motion_computer())
+    else:
+        n = draw(st.integers(2, 6))
+        model = MeanPhaseMotion(n, draw(st.integers(0, n - 1)))
+    return GatedMotion(
+        model,
+        adjacency="ring",
+        fallback=draw(st.sampled_from(FALLBACKS)),
+        decide_after=draw(st.sampled_from([0.01, 0.05])),
+        check_every=draw(st.sampled_from([0.01, 0.03])),
+        threshold=draw(st.sampled_from([0.0, 0.02])),
+    )
+
+
+def register_gated() -> None:
+    from cogblocks.sync import GatedMotion
+
+    # "that of the blocks inside": the gate holds θ_ref on a non-finite reference, the models never emit one
+    register(
+        GatedMotion,
+        gated_motion(),
+        lambda b: {"theta": phase((b.n,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
+        ["theta", "lam"],
+    )
+
+
+register_gated()
+
 # -- sensor streams and L1 ----------------------------------------------------------------------------------
 
 POSITION_SHAPES = st.sampled_from([(), (1,), (3,)])

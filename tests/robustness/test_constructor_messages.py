@@ -23,8 +23,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from cogblocks.blocks.specs import PHASE
 from cogblocks.catalogue import public_blocks
-from cogblocks.sim import Signal
+from cogblocks.sim import Block, Signal
 
 
 def _blocks() -> dict[str, type]:
@@ -71,6 +72,16 @@ def _mean_motion():
     return MeanPhaseMotion(3, 1)
 
 
+class _Ports(Block):
+    """A model with the motion computers' ports that does not say the group's size."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.add_input("theta", PHASE, feedthrough=False)
+        self.add_input("lam", feedthrough=False, default=1.0)
+        self.add_output("theta_ref", PHASE)
+
+
 def _shielded_motion():
     from cogblocks.sync import OscillatorMotion
 
@@ -111,6 +122,7 @@ BASES: dict[str, Callable[[], dict[str, Any]]] = {
     "PlannedMotion": lambda: {"n": 3, "assisted": 0, "end": 10.0},
     "RecedingPlanMotion": lambda: {"n": 3, "assisted": 0, "end": 10.0},
     "ShieldedMotion": lambda: {"motion": _shielded_motion()},
+    "GatedMotion": lambda: {"model": _mean_motion(), "adjacency": "ring"},
     "ReferenceCustomizer": lambda: {"reference": CURVE},
     "PhaseEstimator3D": lambda: {"reference": CURVE},
     "PhasePositionComputer": lambda: {"reference": CURVE},
@@ -148,6 +160,9 @@ PASS_THROUGH: dict[str, dict[str, str]] = {
     | {"customization": "ReferenceCustomizer", "grid": "ReferenceCustomizer"},
     "LibraryProjector": dict.fromkeys(("metric", "dtype"), "PrefixProjection"),
     "L2Amplification": {"candidates": "LibraryProjector"},
+    "GatedMotion": dict.fromkeys(
+        ("n", "assisted", "adjacency", "fallback", "decide_after", "check_every", "threshold"), "NoiseGate"
+    ),
 }
 
 
@@ -434,6 +449,16 @@ CASES = [
     case("RLCorrector", "gain", 0.0, "(0.0, inf)"),
     case("RLCorrector", "interval", 0, "integer >= 1"),
     # the L2 architectures as blocks
+    case("GatedMotion", "model", 5, "inputs ['theta', 'lam'] and outputs ['theta_ref']", given="int"),
+    case("GatedMotion", "n", 4, "the model's n = 3"),
+    case("GatedMotion", "n", 1, "integer >= 2", model=_Ports(), assisted=0),
+    case("GatedMotion", "assisted", 2, "the model's assisted = 1"),
+    case("GatedMotion", "assisted", 3, "[0, 2]", model=_Ports(), n=3),
+    case("GatedMotion", "adjacency", [[1.0]], "shape (3, 3)", given="(1, 1)"),
+    case("GatedMotion", "fallback", "median", "one of ['mean', 'nothing']"),
+    case("GatedMotion", "decide_after", 0.0, "(0.0, inf)"),
+    case("GatedMotion", "check_every", -1.0, "(0.0, inf)"),
+    case("GatedMotion", "threshold", math.nan, "[0.0, inf)"),
     case("L2Sync", "motion", 5, "inputs ['theta', 'lam'] and outputs ['theta_ref']", given="int"),
     case("L2Sync", "assisted", -1, "integer >= 0"),
     case("L2Sync", "assisted", 0, "assisted index 1"),

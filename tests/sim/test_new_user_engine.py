@@ -202,7 +202,9 @@ def test_a_snapshot_of_another_diagram_is_refused_as_a_whole():
         ValueError,
         match=r"another diagram: only in the snapshot \['group', .*only in this diagram \['c', 'p', 'x'\]",
     ):
-        Simulator(_counter_loop()).load_state_dict(Simulator(pop_sync(1, motion="mean", blender="deliverable")).state_dict())
+        Simulator(_counter_loop()).load_state_dict(
+            Simulator(pop_sync(1, motion="mean", blender="deliverable")).state_dict()
+        )
 
 
 class _Noisy(Block):
