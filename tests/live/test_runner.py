@@ -186,6 +186,7 @@ def test_sync_and_l1_run_live_as_they_run_offline(lsl, streamer, stream_name):
             np.testing.assert_allclose(offline, report.trace["p_avatar"], rtol=0, atol=1e-9, equal_nan=True)
 
 
+@pytest.mark.realtime
 def test_replan_decides_on_its_thread_live_and_plays_what_it_would_offline(lsl, streamer, stream_name):
     from cogblocks.data.groups import TABLE2
     from cogblocks.live import live_sync, run_realtime

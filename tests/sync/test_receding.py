@@ -104,6 +104,7 @@ def test_plans_continue_bit_for_bit_from_a_snapshot_taken_between_a_decision_and
         np.testing.assert_array_equal(first["r"], second["r"])
 
 
+@pytest.mark.realtime
 def test_on_a_thread_in_real_time_the_plans_are_those_made_inline():
     from cogblocks.live import run_realtime
 
