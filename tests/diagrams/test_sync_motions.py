@@ -13,7 +13,7 @@ from cogblocks.sync.pacing import PacingMotion
 
 
 def test_the_listed_names_are_the_recommended_ones_and_the_retired_ones_are_still_known():
-    assert sorted(MOTIONS) == ["dqn", "dqn_raw", "lookahead", "mean", "mpc", "plan", "replan"]
+    assert sorted(MOTIONS) == ["dqn", "dqn_raw", "gated", "lookahead", "mean", "mpc", "plan", "replan"]
     assert "guard" in MOTIONS and "pace" in MOTIONS and "nope" not in MOTIONS
     assert set(MOTIONS.retired) == {"guard", "pace"}
 
@@ -31,7 +31,7 @@ def test_a_recommended_name_builds_without_a_warning_and_an_unknown_one_is_a_key
         assert isinstance(MOTIONS["replan"](TABLE2[1]), RecedingPlanMotion)
     with pytest.raises(KeyError, match="nope"):
         MOTIONS["nope"]
-    with pytest.raises(ValueError, match=r"pop_sync: motion must be one of \['dqn', 'dqn_raw', 'lookahead'"):
+    with pytest.raises(ValueError, match=r"pop_sync: motion must be one of \['dqn', 'dqn_raw', 'gated', 'lookahead'"):
         pop_sync(1, motion="nope")
 
 
