@@ -39,6 +39,7 @@ MODULES = [
     "benchmarks.bound",
     "benchmarks.plan",
     "benchmarks.replan",
+    "benchmarks.planner",
     "benchmarks.pace",
     "benchmarks.guard",
     "benchmarks.soak",
@@ -46,6 +47,7 @@ MODULES = [
     "benchmarks.live",
     "benchmarks.scope",
     "benchmarks.loaders",
+    "benchmarks.batch",
 ]
 
 
@@ -57,7 +59,9 @@ def main(argv: list[str] | None = None) -> int:
     ran = 0
     for module_name in MODULES:
         prefix = _PREFIXES.get(module_name, module_name.split(".")[-1])
-        if args.only and not (args.only.startswith(prefix) or prefix.startswith(args.only)):
+        if args.only and not (
+            args.only == prefix or args.only.startswith(prefix + ".") or prefix.startswith(args.only)
+        ):
             continue
         module = importlib.import_module(module_name)
         for result in module.run(quick=args.quick):

@@ -181,6 +181,8 @@ def _build_parser() -> argparse.ArgumentParser:
     cut = "with --random: cut every group to at most S simulated seconds (a quick look)"
     sync.add_argument("--max-duration", type=STEP, metavar="S", help=cut)
     sync.add_argument("--workers", type=COUNT, default=1, metavar="W", help="processes for --random (default 1)")
+    batched = "with --random: run the policies that batch (mean, dqn_raw) and the runs without L2 on batched diagrams"
+    sync.add_argument("--batch", action="store_true", help=batched)
     sync.add_argument(
         "--split",
         choices=("test", "validation", "train"),

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cogblocks.blocks.samples import plausible
+from cogblocks.blocks.samples import PLAUSIBLE, plausible
 from cogblocks.blocks.specs import COUNT, POSITION, VELOCITY
 from cogblocks.sim import Block, Signal
 from cogblocks.sim.params import positive_int
@@ -49,8 +49,11 @@ class Buffer(Block):
     -----
     Bad data policy: a sample with a non-finite or implausible element (beyond 1 km or 1 km/s,
     :func:`~cogblocks.blocks.samples.plausible`) is stored as the last good one (zeros before
-    any), so that sample numbers keep following the clock.
+    any), so that sample numbers keep following the clock. It runs a batch at once, this run by run
+    (the runs of a batch receive their samples on the same ticks, so they share ``received``).
     """
+
+    batchable = True
 
     def __init__(self, capacity: int = 200, *, period: float | None = None) -> None:
         super().__init__(period=period)
@@ -69,9 +72,20 @@ class Buffer(Block):
         self.add_state("last_v", np.zeros(3))
         self.add_state("last_p", np.zeros(3))
 
+    def setup(self) -> None:
+        self.add_state("last_v", np.zeros(self.batch_shape + (3,)))
+        self.add_state("last_p", np.zeros(self.batch_shape + (3,)))
+
     def output(self, k: int) -> None:
         row = self.received % self.capacity
         v, p = self.v.value, self.p.value
+        if self.batch is not None:
+            for given, last, ring in ((v, self.last_v, self.velocity.value), (p, self.last_p, self.position.value)):
+                good = np.all(np.abs(given) < PLAUSIBLE, axis=-1, keepdims=True)
+                ring[:, row] = np.where(good, given, last)
+            self.count.value[...] = self.received + 1
+            self.length.value[...] = min(self.received + 1, self.capacity)
+            return
         self.velocity.value[row] = v if plausible(v) else self.last_v
         self.position.value[row] = p if plausible(p) else self.last_p
         self.count.value[...] = self.received + 1
@@ -79,8 +93,8 @@ class Buffer(Block):
 
     def update(self, k: int) -> None:
         row = self.received % self.capacity
-        self.last_v[...] = self.velocity.value[row]
-        self.last_p[...] = self.position.value[row]
+        self.last_v[...] = self.velocity.value[..., row, :]
+        self.last_p[...] = self.position.value[..., row, :]
         self.received += 1
 
 

@@ -225,7 +225,12 @@ class EncoderClassifier(Block):
     Bad data policy: the buffer upstream replaces non-finite and implausible samples; fed
     directly, a window holding a sample beyond 1 km/s
     (:func:`~cogblocks.blocks.samples.plausible`) is not classified and the outputs hold.
+
+    It runs a batch at once: each run's window is restricted and resampled on its own, the network
+    evaluates every run's features in one product (the same value as one run's to rounding).
     """
+
+    batchable = True
 
     def __init__(self, network: EncoderNet, *, rest_speed: float = REST_SPEED, period: float | None = None) -> None:
         super().__init__(period=period)
@@ -258,7 +263,31 @@ class EncoderClassifier(Block):
         e = math.exp(-abs(z))  # the sigmoid without overflow for large |z|
         return (1.0 / (1.0 + e) if z >= 0 else e / (1.0 + e)), length
 
+    def _output_rows(self) -> None:
+        rows, features = [], []
+        for b, (ring, count) in enumerate(zip(self.velocity.value, self.count.value, strict=True)):
+            window = ordered_window(ring, int(count))
+            if not plausible(window):
+                continue  # this run's outputs hold
+            length = movement_length(window, self.rest_speed)
+            self.length.value[b] = length
+            if length == 0:
+                self.eps.value[b], self.decision.value[b] = math.nan, clip_decision(math.nan)
+                continue
+            rows.append(b)
+            features.append((resampling_matrix(length) @ window[:length]).T.reshape(-1))
+        if rows:
+            x = (np.array(features) - self._mean) / self._scale
+            z = np.maximum(x @ self._w1.T + self._b1, 0.0) @ self._w2 + self._b2
+            e = np.exp(-np.abs(z))  # the sigmoid without overflow for large |z|
+            eps = np.where(z >= 0, 1.0 / (1.0 + e), e / (1.0 + e))
+            self.eps.value[rows] = eps
+            self.decision.value[rows] = clip_decision(eps)
+
     def output(self, k: int) -> None:
+        if self.batch is not None:
+            self._output_rows()
+            return
         window = ordered_window(self.velocity.value, int(self.count.value))
         if not plausible(window):
             return

@@ -34,10 +34,12 @@ class Mux(Block):
             if port.spec.unit != first.unit or port.spec.wrapped != first.wrapped:
                 raise self._fail(f"all inputs must share unit and wrapping; u0 is {first}, {port.name} is {port.spec}")
 
+    batchable = True
+
     def output(self, k: int) -> None:
         y = self.y.value
         for i, port in enumerate(self._ins):
-            y[i] = port.value
+            y[..., i] = port.value
 
 
 class Demux(Block):
@@ -60,10 +62,12 @@ class Demux(Block):
         self.add_input("u", Signal(shape=(n,), dtype=None, unit=unit, wrapped=wrapped))
         self._outs = [self.add_output(f"y{i}", like="u", shape=()) for i in range(n)]
 
+    batchable = True
+
     def output(self, k: int) -> None:
         u = self.u.value
         for i, port in enumerate(self._outs):
-            port.value[...] = u[i]
+            port.value[...] = u[..., i]
 
 
 class _Indexed(Block):
@@ -96,8 +100,10 @@ class Select(_Indexed):
         super().__init__(index, period)
         self.add_output("y", like="u", shape=())
 
+    batchable = True
+
     def output(self, k: int) -> None:
-        self.y.value[...] = self.u.value[self.index]
+        self.y.value[...] = self.u.value[..., self.index]
 
 
 class Substitute(_Indexed):
@@ -126,7 +132,9 @@ class Substitute(_Indexed):
         if problem:
             raise self._fail(f"v ({self.v.spec}) does not match the elements of u ({self.u.spec}): {problem}")
 
+    batchable = True
+
     def output(self, k: int) -> None:
         y = self.y.value
         y[...] = self.u.value
-        y[self.index] = self.v.value
+        y[..., self.index] = self.v.value

@@ -34,6 +34,8 @@ class Constant(Block):
     Bad data policy: no inputs; a non-finite value is refused when built.
     """
 
+    batchable = True  # the same value in every run
+
     def __init__(self, value: Any, *, unit: str = "1", wrapped: bool = False, period: float | None = None) -> None:
         super().__init__(period=period)
         given = np.asarray(value)
@@ -51,10 +53,13 @@ class Playback(Block):
     Parameters
     ----------
     data : array_like
-        Samples, shape ``(n, *shape)``.
+        Samples, shape ``(n, *shape)``; with ``per_run``, ``(n, B, *shape)``: one recording per run of a batch.
     unit, wrapped : signal spec of the output.
     at_end : {"hold", "repeat", "zero", "error"}
         What to output after the last row.
+    per_run : bool
+        Whether ``data``'s second axis holds the runs of a batch (``compile(dt, batch=B)``); without it
+        every run plays the same samples.
 
     Notes
     -----
@@ -69,17 +74,27 @@ class Playback(Block):
         unit: str = "1",
         wrapped: bool = False,
         at_end: str = "hold",
+        per_run: bool = False,
         period: float | None = None,
     ) -> None:
         super().__init__(period=period)
+        if not isinstance(per_run, (bool, np.bool_)):
+            raise ValueError(f"Playback: per_run must be True or False, got {per_run!r}")
         arr = np.array(data, dtype=np.float64)
-        if arr.ndim < 1 or len(arr) == 0:
+        if arr.ndim < 1 + bool(per_run) or len(arr) == 0:
             raise ValueError(f"Playback: data must be an array with at least one row, got shape {arr.shape}")
         if np.isinf(arr).any():
             raise ValueError("Playback: data must not contain inf (NaN is allowed, to model missing samples)")
         self.data = arr
         self.at_end = one_of(self, "at_end", at_end, ("hold", "repeat", "zero", "error"))
-        self.add_output("y", shape=arr.shape[1:], unit=unit, wrapped=wrapped)
+        self.per_run = bool(per_run)
+        self.add_output("y", shape=arr.shape[2:] if per_run else arr.shape[1:], unit=unit, wrapped=wrapped)
+
+    batchable = True  # every run plays its own row (per_run) or the same samples
+
+    def setup(self) -> None:
+        if self.per_run and self.batch != self.data.shape[1]:
+            raise self._fail(f"data holds {self.data.shape[1]} runs (per_run); compile with batch={self.data.shape[1]}")
 
     def output(self, k: int) -> None:
         i = k // self.every

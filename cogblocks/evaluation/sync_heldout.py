@@ -34,8 +34,12 @@ def evaluate_group(
     thorough: bool = False,
     domain: str = "phase",
     blender: str = DEFAULT_BLENDER,
+    done: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """One group: r without L2, the bound, and per policy r with L2, the change and the deviations.
+
+    ``done`` holds figures already computed (a row of :func:`~cogblocks.diagrams.sync_batch.sync_rows`,
+    from a batch): its policies are not run again.
 
     Returns
     -------
@@ -48,7 +52,11 @@ def evaluate_group(
         the clairvoyant one (the noise draw known). ``domain="position"`` runs the policies on phases estimated
         from arm positions (the bound stays the phase domain's).
     """
-    result = run_sync(group, policies, domain, blender=blender)
+    ready = {row["policy"]: row for row in (done or {}).get("results", [])}
+    result = run_sync(group, [p for p in policies if p not in ready], domain, blender=blender)
+    if done is not None:
+        computed = {row["policy"]: row for row in result["results"]}
+        result = {"r_without": done["r_without"], "results": [ready.get(p) or computed[p] for p in policies]}
     r_without = result["r_without"]
     # without the pace start unless thorough: it would cost as much again
     r_bound = upper_bound(group, pace=False, thorough=thorough) if bound else None
@@ -126,6 +134,7 @@ def heldout_table(
     noise: bool = False,
     domain: str = "phase",
     blender: str = DEFAULT_BLENDER,
+    batch: bool = False,
     progress: Callable[[int, dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
     """Evaluate ``policies`` (all of :data:`MOTIONS` by default) on ``n_groups`` groups of ``split`` and ``seed``.
@@ -161,6 +170,10 @@ def heldout_table(
         Where the policies read the phases (see :func:`~cogblocks.diagrams.sync.pop_sync`).
     blender : {"continuous", "deliverable"}
         The blender of every closed loop (:func:`~cogblocks.diagrams.sync.pop_sync`'s); the bound is the deliverable's.
+    batch : bool
+        Run the policies that batch (:data:`~cogblocks.diagrams.sync_batch.BATCHED_MOTIONS`) and the runs
+        without L2 on batched diagrams, the groups that share a structure together (phase domain; the same
+        figures, bit for bit); the other policies and the bounds run group by group.
     progress : callable, optional
         ``progress(index, row)`` as each group is done (with workers, in the order they finish), ``row`` as
         :func:`evaluate_group` returns it: an interrupted caller keeps every group finished so far.
@@ -185,15 +198,20 @@ def heldout_table(
         if not max_duration > 0:
             raise ValueError(f"max_duration must be positive, got {max_duration}")
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
+    ready: list[Any] = [None] * len(groups)  # figures computed on batched diagrams
+    if batch and domain == "phase":
+        from cogblocks.diagrams.sync_batch import BATCHED_MOTIONS, sync_rows
+
+        ready = sync_rows(groups, [p for p in policies if p in BATCHED_MOTIONS], blender)
     if workers == 1:
         done: Iterable[tuple[int, dict[str, Any]]] = (
-            (i, evaluate_group(g, policies, bound, thorough, domain, blender)) for i, g in enumerate(groups)
+            (i, evaluate_group(g, policies, bound, thorough, domain, blender, ready[i])) for i, g in enumerate(groups)
         )
     else:
         from joblib import Parallel, delayed
 
         done = Parallel(n_jobs=workers, backend="loky", return_as="generator_unordered")(
-            delayed(_indexed)(i, g, policies, bound, thorough, domain, blender) for i, g in enumerate(groups)
+            delayed(_indexed)(i, g, policies, bound, thorough, domain, blender, ready[i]) for i, g in enumerate(groups)
         )
     by_index: dict[int, dict[str, Any]] = {}
     for index, row in done:

@@ -51,6 +51,8 @@ def add_sweep_parser(commands: Any) -> None:
         help="write every run to FILE (.parquet or .csv)",
     )
     sync.add_argument("--json", action="store_true", help="print the summary as JSON")
+    batched = "run the runs without L2 and the policies that batch (mean, dqn_raw) on batched diagrams (phase domain)"
+    sync.add_argument("--batch", action="store_true", help=batched)
     sync.set_defaults(handler=_sweep_sync)
 
 
@@ -71,6 +73,7 @@ def _sweep_sync(args: argparse.Namespace) -> int:
         backend=args.backend,
         n_jobs=args.workers,
         client=args.scheduler,
+        batch=args.batch,
     )
     if args.out:
         write_safely(args.out, lambda path: save_results(df, path), "the sweep's results")

@@ -50,6 +50,7 @@ def run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
             noise=args.noise,
             domain=args.domain,
             progress=progress,
+            batch=args.batch,
             **options,
         )
     except KeyboardInterrupt:

@@ -17,7 +17,8 @@ import pandas as pd
 from cogblocks.data import groups as group_data
 from cogblocks.data.groups import TABLE2, SyncGroup
 from cogblocks.diagrams.sync import DEFAULT_BLENDER, MOTIONS, pop_sync
-from cogblocks.experiments.sweep import sweep
+from cogblocks.diagrams.sync_batch import BATCHED_MOTIONS, sync_rows
+from cogblocks.experiments.sweep import sweep, sweep_seeds
 from cogblocks.sim import Simulator, Trace
 
 __all__ = ["NO_L2", "random_group_set", "save_sync_trace", "sweep_sync", "sync_measure", "sync_run", "table2_groups"]
@@ -91,27 +92,63 @@ def sweep_sync(
     n_jobs: int | None = None,
     client: Any = None,
     progress: bool | None = None,
+    batch: bool = False,
 ) -> pd.DataFrame:
     """The group comparison as a sweep: every group × (no L2 and every policy) × seed.
 
     Returns the sweep's DataFrame (see :func:`~cogblocks.experiments.sweep.sweep`) with
-    ``change_pct``, the change of ``r_mean`` against the same group and seed without L2.
+    ``change_pct``, the change of ``r_mean`` against the same group and seed without L2. With
+    ``batch`` (phase domain), the runs without L2 and the policies that batch
+    (:data:`~cogblocks.diagrams.sync_batch.BATCHED_MOTIONS`) run here on batched diagrams, the groups
+    that share a structure together (their rows are the same figures; the deviations to rounding).
     """
     names = [NO_L2] + [p for p in policies if p != NO_L2]
-    df = sweep(
-        functools.partial(sync_run, groups=dict(groups), domain=domain),
-        {"group": list(groups), "policy": names},
-        measure=sync_measure,
-        seeds=seeds,
-        backend=backend,
-        n_jobs=n_jobs,
-        client=client,
-        progress=progress,
-    )
+    together = [p for p in names if batch and domain == "phase" and (p == NO_L2 or p in BATCHED_MOTIONS)]
+    alone = [p for p in names if p not in together]
+    frames = [_batched_frame(groups, together, seeds)] if together else []
+    if alone:
+        frames.append(
+            sweep(
+                functools.partial(sync_run, groups=dict(groups), domain=domain),
+                {"group": list(groups), "policy": alone},
+                measure=sync_measure,
+                seeds=seeds,
+                backend=backend,
+                n_jobs=n_jobs,
+                client=client,
+                progress=progress,
+            )
+        )
+    df = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
+    order = {g: i for i, g in enumerate(groups)}, {p: i for i, p in enumerate(names)}
+    df = df.sort_values(
+        ["group", "policy", "replicate"],
+        key=lambda c: c.map(order[0]) if c.name == "group" else (c.map(order[1]) if c.name == "policy" else c),
+        kind="stable",
+    ).reset_index(drop=True)
     baseline = df[df["policy"] == NO_L2].set_index(["group", "seed"])["r_mean"]
     base = baseline.reindex(pd.MultiIndex.from_frame(df[["group", "seed"]])).to_numpy()
     df.insert(df.columns.get_loc("r_mean") + 1, "change_pct", 100.0 * (df["r_mean"].to_numpy() - base) / base)
     return df
+
+
+def _batched_frame(groups: Mapping[str, SyncGroup], names: Sequence[str], seeds: int | Sequence[int]) -> pd.DataFrame:
+    """The sweep's rows of ``names`` (the phase domain: every seed the same run), from batched diagrams."""
+    seed_list = sweep_seeds(seeds) if isinstance(seeds, (int, np.integer)) else [int(s) for s in seeds]
+    rows = sync_rows(list(groups.values()), [p for p in names if p != NO_L2])
+    records = []
+    for label, row in zip(groups, rows, strict=True):
+        by_policy = {r["policy"]: r for r in row["results"]}
+        for policy in names:
+            figures = {"r_mean": row["r_without"], "mean_dev_rad": np.nan, "max_dev_rad": np.nan}
+            if policy != NO_L2:
+                r = by_policy[policy]
+                figures = {"r_mean": r["r_with"], "mean_dev_rad": r["mean_dev_rad"], "max_dev_rad": r["max_dev_rad"]}
+            for replicate, seed in enumerate(seed_list):
+                records.append(
+                    {"group": label, "policy": policy, "replicate": replicate, "seed": seed, **figures, "error": None}
+                )
+    return pd.DataFrame.from_records(records)
 
 
 def save_sync_trace(group: int, policy: str, domain: str, path: str, *, blender: str = DEFAULT_BLENDER) -> None:

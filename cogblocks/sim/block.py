@@ -12,29 +12,13 @@ import numpy as np
 
 from cogblocks.sim.errors import DiagramError
 from cogblocks.sim.ports import Input, Output
-from cogblocks.sim.signal import Signal
-from cogblocks.sim.snapshot import value_problem
+from cogblocks.sim.signal import Signal, spec_from
+from cogblocks.sim.snapshot import generators, value_problem
 
 __all__ = ["Block"]
 
-_SPEC_FIELDS = ("shape", "dtype", "unit", "wrapped")
-
 # creation order of blocks: messages name a user's newest block first, the likeliest to be at fault
 _CREATED = itertools.count()
-
-
-def _spec_from(owner: Block, name: str, spec: Signal | None, fields: dict[str, Any], defaults: Signal) -> Signal:
-    unknown = set(fields) - set(_SPEC_FIELDS)
-    if unknown:
-        raise TypeError(f"unknown signal field(s) {sorted(unknown)}; allowed: {list(_SPEC_FIELDS)}")
-    if spec is not None:
-        if fields:
-            raise TypeError("give either a Signal spec or its fields, not both")
-        return spec
-    try:
-        return defaults.with_(**fields) if fields else defaults
-    except ValueError as exc:  # a bad unit/shape/wrapped given to the block's constructor: say whose
-        raise ValueError(f"{type(owner).__name__}.{name}: {exc}") from None
 
 
 class Block:
@@ -69,6 +53,10 @@ class Block:
     #: True for a :class:`~cogblocks.sim.Diagram`: the compiler flattens composite blocks. A flag,
     #: not ``isinstance``, so that the compiler and renderers need not import the diagram module.
     composite: bool = False
+    #: True for a block that runs a batch of runs in one call (see :mod:`cogblocks.sim.batch`): its ports then carry
+    #: arrays with a leading axis of :attr:`batch` runs and it sizes its state from :attr:`batch_shape` in ``setup``.
+    #: Other blocks run in a batch one copy per run. A property where it depends on a part (a policy).
+    batchable: bool = False
 
     def __init__(self, *, period: float | None = None) -> None:
         self._inputs: dict[str, Input] = {}
@@ -80,6 +68,7 @@ class Block:
         self.period = period
         self.dt: float = 0.0
         self.every: int = 1
+        self.batch: int | None = None  # runs at once, set when compiled; None: no batch axis
         self._created = next(_CREATED)
 
     # -- declaration ---------------------------------------------------------
@@ -122,13 +111,15 @@ class Block:
             lets feedback loops through the block compile.
         """
         self._check_init(name)
-        spec = _spec_from(self, name, spec, fields, Signal())
+        spec = spec_from(type(self).__name__, name, spec, fields, Signal())
         port = Input(self, name, spec, default=default, feedthrough=feedthrough)
-        if port.default is not None and port.spec.shape is not None and port.default.shape not in ((), port.spec.shape):
-            raise ValueError(
-                f"{type(self).__name__}.{name}: default of shape {port.default.shape} "
-                f"does not fit shape {port.spec.shape}"
-            )
+        fits = ((), port.spec.shape)
+        if port.default is not None and port.spec.shape is not None and port.default.shape not in fits:
+            if not (type(self).batchable is True and port.default.shape[1:] == port.spec.shape):  # or one row per run
+                raise ValueError(
+                    f"{type(self).__name__}.{name}: default of shape {port.default.shape} does not fit shape "
+                    f"{port.spec.shape}" + (" (or one row per run of a batch)" if type(self).batchable is True else "")
+                )
         self._inputs[name] = port
         object.__setattr__(self, name, port)
         return port
@@ -166,7 +157,7 @@ class Block:
                 raise TypeError("give either a spec or like=, not both")
             port = Output(self, name, None, like=like, like_overrides=fields, initial=initial)
         else:
-            resolved = _spec_from(self, name, spec, fields, Signal())
+            resolved = spec_from(type(self).__name__, name, spec, fields, Signal())
             if not resolved.concrete:
                 raise ValueError(f"{type(self).__name__}.{name}: an output spec must fix every field, got {resolved}")
             port = Output(self, name, resolved, initial=initial)
@@ -231,6 +222,11 @@ class Block:
     def scratch_names(self) -> tuple[str, ...]:
         """Names of the declared work attributes (see :meth:`add_scratch`)."""
         return tuple(sorted(self._scratch))
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        """The leading axes of this block's signals and state: ``()``, or ``(batch,)`` when it runs a batch at once."""
+        return () if self.batch is None else (self.batch,)
 
     @property
     def stateful(self) -> bool:
@@ -334,6 +330,9 @@ class Block:
         current = self.__dict__.get(name)
         if isinstance(current, np.random.Generator):
             current.bit_generator.state = copy.deepcopy(value)
+        elif generators(current) and isinstance(value, list) and len(value) == len(current):
+            for generator, saved in zip(current, value, strict=True):  # one generator per run of a batch
+                generator.bit_generator.state = copy.deepcopy(saved)
         elif (
             isinstance(current, np.ndarray)
             and isinstance(value, np.ndarray)
@@ -386,4 +385,6 @@ class Block:
 def _snapshot(value: Any) -> Any:
     if isinstance(value, np.random.Generator):
         return copy.deepcopy(value.bit_generator.state)
+    if generators(value):
+        return [copy.deepcopy(g.bit_generator.state) for g in value]
     return copy.deepcopy(value)

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cogblocks.sim.batch import allocate, batch_size, bind, warn_per_row
 from cogblocks.sim.block import Block
 from cogblocks.sim.errors import DiagramError, SimulationError
 from cogblocks.sim.loops import order_blocks
@@ -54,6 +55,8 @@ class CompiledDiagram:
         Base step in seconds.
     k : int
         Index of the next tick to run.
+    batch : int or None
+        Runs at once (``compile(dt, batch=B)``, :mod:`cogblocks.sim.batch`), or None: no batch axis.
     blocks : dict
         Leaf blocks by dotted path, in execution order.
     diagram : Diagram
@@ -63,7 +66,7 @@ class CompiledDiagram:
         The diagram that was compiled.
     """
 
-    def __init__(self, diagram: Diagram, dt: float = BASE_STEP) -> None:
+    def __init__(self, diagram: Diagram, dt: float = BASE_STEP, *, batch: int | None = None) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise DiagramError(f"the base step dt must be a positive number of seconds, got {dt!r}")
         for plan in running_plans(diagram):
@@ -73,6 +76,7 @@ class CompiledDiagram:
         self._stale_reason: str | None = None
         self._lock = threading.Lock()
         self.dt = float(dt)
+        self.batch = batch_size(batch)
         self.k = 0
         leaves: dict[str, Block] = {}
         periods: dict[str, float | None] = {}
@@ -84,21 +88,28 @@ class CompiledDiagram:
         check_driven(leaves, drivers, external, self._name)
         resolve_specs(diagram, leaves, drivers, external, self._ext_outputs, self._name)
         ticks = self._periods(leaves, periods)
-        for path, block in leaves.items():
-            block.dt = ticks[path] * self.dt
-            block.every = ticks[path]
-            for port in block._outputs.values():
-                port.value = port.spec.zeros()
-            block.setup()
-        self._bind(leaves, drivers, external)
+        self._rows = allocate(leaves, ticks, self.dt, self.batch, diagram)
+        self._external = bind(diagram, leaves, drivers, external, self.batch, self._rows, self._name)
         order, self._loops = order_blocks(leaves, drivers, ticks, self._name)
+        if self._loops and self.batch is not None:
+            raise DiagramError(
+                f"the algebraic loops through {sorted(self._loops)} cannot run batched yet; compile unbatched"
+            )
         self.blocks = {p: leaves[p] for p in order}
+        self._runs = {p: self._rows.get(p, b) for p, b in self.blocks.items()}  # what runs each path
         self._ticks = [ticks[p] for p in order]
         self._build_schedule()
-        self._output_arrays = [(port, port.value) for b in self.blocks.values() for port in b._outputs.values()]
+        run = [*self.blocks.values(), *(c for r in self._rows.values() for c in r.copies)]
+        self._output_arrays = [(port, port.value) for b in run for port in b._outputs.values()]
         for block in leaf_blocks(diagram):
             object.__setattr__(block, "_plan", self)
         self.reset()
+        warn_per_row(self._rows)
+
+    @property
+    def per_row(self) -> tuple[str, ...]:
+        """Paths of the blocks that run one copy per run of the batch (blocks that are not ``batchable``)."""
+        return tuple(self._rows)
 
     @property
     def current(self) -> bool:
@@ -124,6 +135,8 @@ class CompiledDiagram:
             moved["source"] = self.source
             moved["_paths"] = {id(b): p for p, b in moved["blocks"].items()}
             self.__dict__.update(moved)
+            for rows in self._rows.values():  # the copied row views are arrays of their own: view the rows again
+                rows.bind()
         finally:
             self._lock.release()
 
@@ -175,7 +188,9 @@ class CompiledDiagram:
         return found
 
     def _name(self, port: Input | Output) -> str:
-        return f"{self._paths[id(port.block)]}.{port.name}"
+        block = port.block
+        path = self._paths.get(id(block)) or next(p for p, r in self._rows.items() if block in r.copies)
+        return f"{path}.{port.name}"
 
     # -- validation ----------------------------------------------------------
     def _periods(self, leaves, periods) -> dict[str, int]:
@@ -198,27 +213,8 @@ class CompiledDiagram:
             ticks[path] = n
         return ticks
 
-    def _bind(self, leaves, drivers, external) -> None:
-        self._external: dict[str, np.ndarray] = {}
-        for name, targets in external.items():
-            spec = self.diagram._inputs[name].spec
-            arr = targets[0].spec.merge(spec).zeros()
-            self._external[name] = arr
-            for inp in targets:
-                inp.value = arr
-                inp.driven = True
-        for block in leaves.values():
-            for inp in block._inputs.values():
-                if inp in drivers:
-                    inp.value = drivers[inp].value
-                    inp.driven = True
-                elif not any(inp in t for t in external.values()):
-                    inp.value = np.array(np.broadcast_to(inp.default, inp.spec.shape), dtype=inp.spec.dtype)
-                    inp.driven = False
-
     # -- schedule ------------------------------------------------------------
     def _build_schedule(self) -> None:
-        blocks = list(self.blocks.values())
         on_loops = {id(b) for loop in self._loops.values() for b in loop.blocks}
         self._outs_all = []
         for n, (path, b) in zip(self._ticks, self.blocks.items(), strict=True):
@@ -226,8 +222,8 @@ class CompiledDiagram:
                 self._outs_all.append((n, self._loops[path].output))
             elif id(b) not in on_loops and type(b).output is not Block.output:
                 # blocks that only hold a value (Constant) or are only read (Probe) need no call
-                self._outs_all.append((n, b.output))
-        self._upds_all = [(n, b.update) for n, b in zip(self._ticks, blocks, strict=True) if b.stateful]
+                self._outs_all.append((n, self._runs[path].output))
+        self._upds_all = [(n, r.update) for n, r in zip(self._ticks, self._runs.values(), strict=True) if r.stateful]
         hyper = 1
         for n in set(self._ticks):
             hyper = hyper * n // math.gcd(hyper, n)
@@ -386,7 +382,7 @@ class CompiledDiagram:
         """Restore every block to its initial state and rewind to tick 0."""
         self._enter()
         try:
-            for block in self.blocks.values():
+            for block in self._runs.values():
                 block.reset()
             for arr in self._external.values():
                 arr[...] = 0
@@ -398,7 +394,7 @@ class CompiledDiagram:
         """Snapshot: the tick counter, every block's state and outputs, the diagram inputs."""
         return {
             "k": self.k,
-            "blocks": {path: block.state_dict() for path, block in self.blocks.items()},
+            "blocks": {path: block.state_dict() for path, block in self._runs.items()},
             "inputs": {name: arr.copy() for name, arr in self._external.items()},
         }
 
@@ -410,11 +406,11 @@ class CompiledDiagram:
         raises ``ValueError`` naming the block and the entry, and leaves the plan
         as it was.
         """
-        check_snapshot(self.blocks, self._external, state)
+        check_snapshot(self._runs, self._external, state)
         self._enter()
         try:
             for path, block_state in state["blocks"].items():
-                self.blocks[path].load_state_dict(block_state)
+                self._runs[path].load_state_dict(block_state)
             for name, value in state["inputs"].items():
                 self._external[name][...] = value
             self.k = int(state["k"])

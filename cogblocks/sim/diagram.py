@@ -150,10 +150,9 @@ class Diagram(Block):
 
     def __contains__(self, path: str) -> bool:
         try:
-            self[path]
+            return self[path] is not None
         except KeyError:
             return False
-        return True
 
     def _port(self, ref: PortRef, kind: type) -> tuple[str, Any]:
         """Resolve a port reference to (child name, port) for a direct child."""
@@ -296,7 +295,7 @@ class Diagram(Block):
         return old
 
     # -- compiling and running -----------------------------------------------
-    def compile(self, dt: float = BASE_STEP) -> CompiledDiagram:
+    def compile(self, dt: float = BASE_STEP, *, batch: int | None = None) -> CompiledDiagram:
         """Validate, flatten and order the diagram into a runnable plan.
 
         The new plan runs this diagram's own blocks (the block objects you hold
@@ -309,10 +308,13 @@ class Diagram(Block):
         ----------
         dt : float
             The base step in seconds (10 ms by default).
+        batch : int, optional
+            Run that many independent runs at once: every signal gets a leading axis of ``batch`` rows
+            (:mod:`cogblocks.sim.batch`). ``None``, the default, has no batch axis.
         """
         from cogblocks.sim.compiled import CompiledDiagram
 
-        self._compiled = CompiledDiagram(self, dt)
+        self._compiled = CompiledDiagram(self, dt, batch=batch)
         return self._compiled
 
     @property
@@ -361,9 +363,6 @@ class Diagram(Block):
     def load_state(self, path: str | os.PathLike) -> None:
         """Load a snapshot file into :attr:`compiled`; see :meth:`CompiledDiagram.load_state`."""
         self._plan_for("load_state()").load_state(path)
-
-    def output(self, k: int) -> None:  # pragma: no cover - diagrams are flattened
-        raise RuntimeError("a Diagram is flattened at compile time and never runs as a block")
 
     # -- looking at it -------------------------------------------------------
     def to_mermaid(self) -> str:

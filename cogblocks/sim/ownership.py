@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["leaf_blocks", "private_copy", "running_plans"]
+__all__ = ["leaf_blocks", "private_copy", "row_copies", "running_plans"]
 
 # objects of these packages are parameters (networks, solvers): shared, never deep-copied
 _SHARED_PACKAGES = frozenset({"torch", "casadi"})
@@ -53,6 +53,30 @@ def private_copy(obj: Any, diagram: Any, keep: tuple[Any, ...] = ()) -> Any:
     TypeError
         Naming the block that cannot be deep-copied.
     """
+    memo = _shared(diagram)
+    for obj_kept in keep:
+        memo[id(obj_kept)] = obj_kept
+    try:
+        return copy.deepcopy(obj, dict(memo))  # deepcopy fills its memo: keep ours for the search below
+    except Exception as exc:  # name the block that holds what cannot be copied
+        culprit = next((b for b in leaf_blocks(diagram) if not _copyable(b, memo)), None)
+        where = f"block {culprit.name!r} ({type(culprit).__name__})" if culprit is not None else "the diagram"
+        raise TypeError(f"{where} cannot be copied ({exc})") from exc
+
+
+def row_copies(block: Any, diagram: Any, n: int) -> list[Any]:
+    """``n`` private deep copies of the leaf ``block`` of ``diagram``, one per run of a batch: they share what
+    :func:`private_copy` shares, and their parent is the block's own (the copies are not added to it)."""
+    memo = _shared(diagram)
+    memo[id(block.parent)] = block.parent
+    try:
+        return [copy.deepcopy(block, dict(memo)) for _ in range(n)]
+    except Exception as exc:
+        raise TypeError(f"block {block.name!r} ({type(block).__name__}) cannot be copied for each run ({exc})") from exc
+
+
+def _shared(diagram: Any) -> dict[int, Any]:
+    """A deepcopy memo that leaves out the plans and the diagram around ``diagram`` and shares its parameters."""
     memo: dict[int, Any] = {}
     parent = diagram.parent
     if parent is not None:
@@ -65,14 +89,7 @@ def private_copy(obj: Any, diagram: Any, keep: tuple[Any, ...] = ()) -> Any:
                 memo[id(plan)] = None
         for value in node.__dict__.values():
             _find_shared(value, memo, seen, _SEARCH_DEPTH)
-    for obj_kept in keep:
-        memo[id(obj_kept)] = obj_kept
-    try:
-        return copy.deepcopy(obj, dict(memo))  # deepcopy fills its memo: keep ours for the search below
-    except Exception as exc:  # name the block that holds what cannot be copied
-        culprit = next((b for b in leaf_blocks(diagram) if not _copyable(b, memo)), None)
-        where = f"block {culprit.name!r} ({type(culprit).__name__})" if culprit is not None else "the diagram"
-        raise TypeError(f"{where} cannot be copied ({exc})") from exc
+    return memo
 
 
 def _copyable(block: Any, memo: dict[int, Any]) -> bool:

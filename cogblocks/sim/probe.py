@@ -18,6 +18,8 @@ class Probe(Block):
     Bad data policy: records what it is given, NaN included; it has no output.
     """
 
+    batchable = True  # only read: records the batched signal as it is
+
     def __init__(self) -> None:
         super().__init__()
         self.add_input("u", ANY)

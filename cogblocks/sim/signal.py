@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Signal", "ANY", "unit_product"]
+__all__ = ["Signal", "ANY", "spec_from", "unit_product"]
 
 _FACTOR = re.compile(r"^([A-Za-z_%°µ][A-Za-z0-9_%°µ]*)(?:\^(-?\d+))?$")
 
@@ -112,6 +112,25 @@ class Signal:
 
 #: An input spec that accepts any signal.
 ANY = Signal(shape=None, dtype=None, unit=None, wrapped=None)
+
+
+_SPEC_FIELDS = ("shape", "dtype", "unit", "wrapped")
+
+
+def spec_from(owner: str, name: str, spec: Signal | None, fields: dict[str, Any], defaults: Signal) -> Signal:
+    """The spec a port declaration asks for: ``spec``, or ``defaults`` with ``fields`` changed (not both);
+    a bad field raises naming ``owner.name``."""
+    unknown = set(fields) - set(_SPEC_FIELDS)
+    if unknown:
+        raise TypeError(f"unknown signal field(s) {sorted(unknown)}; allowed: {list(_SPEC_FIELDS)}")
+    if spec is not None:
+        if fields:
+            raise TypeError("give either a Signal spec or its fields, not both")
+        return spec
+    try:
+        return defaults.with_(**fields) if fields else defaults
+    except ValueError as exc:  # a bad unit/shape/wrapped given to the block's constructor: say whose
+        raise ValueError(f"{owner}.{name}: {exc}") from None
 
 
 def _unit_powers(unit: str) -> dict[str, int]:

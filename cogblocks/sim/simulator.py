@@ -39,6 +39,10 @@ class Simulator:
     progress : bool, optional
         Show a progress bar; by default only on long runs attached to a
         terminal and never when the ``CI`` environment variable is set.
+    batch : int, optional
+        Run that many independent runs at once (``diagram.compile(dt, batch=batch)``, see
+        :mod:`cogblocks.sim.batch`): inputs and recorded signals then have a batch axis of that
+        many rows after the time axis. For a ``CompiledDiagram`` it must be the plan's own.
 
     Notes
     -----
@@ -57,11 +61,14 @@ class Simulator:
         probes: Sequence[str] | Mapping[str, str] | None = None,
         decimate: int = 1,
         progress: bool | None = None,
+        batch: int | None = None,
     ) -> None:
         if isinstance(diagram, CompiledDiagram):
+            if batch is not None and batch != diagram.batch:
+                raise ValueError(f"Simulator: batch={batch!r}, but the compiled diagram runs batch={diagram.batch!r}")
             self.compiled = diagram
         elif isinstance(diagram, Diagram):
-            self.compiled = diagram.compile(dt)
+            self.compiled = diagram.compile(dt, batch=batch)
         else:
             raise TypeError(f"Simulator needs a Diagram or CompiledDiagram, got {type(diagram).__name__}")
         if not isinstance(decimate, (int, np.integer)) or decimate < 1:
@@ -96,6 +103,11 @@ class Simulator:
             for name, path in self._probes.items()
         }
         return {name: (port.value, port.spec.unit or "") for name, port in ports.items()}
+
+    @property
+    def batch(self) -> int | None:
+        """Runs at once (``None``: no batch axis)."""
+        return self.compiled.batch
 
     @property
     def dt(self) -> float:
@@ -196,7 +208,7 @@ class Simulator:
         else:
             compiled.advance(n, record, feed)
         t = (k0 + np.arange(n_rec) * self.decimate) * compiled.dt
-        return Trace(t, buffers, {name: unit for name, (_, unit) in probes.items()})
+        return Trace(t, buffers, {name: unit for name, (_, unit) in probes.items()}, batch=compiled.batch)
 
     def _n_steps(self, duration: float | None, n_steps: int | None) -> int:
         if (duration is None) == (n_steps is None):

@@ -16,10 +16,15 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["check_snapshot", "load_snapshot", "save_snapshot", "value_problem"]
+__all__ = ["check_snapshot", "generators", "load_snapshot", "save_snapshot", "value_problem"]
 
 _FORMAT = "cogblocks-snapshot"
 _VERSION = 1
+
+
+def generators(value: Any) -> bool:
+    """Whether ``value`` is a list of random generators (one per run of a batch), snapshotted by their states."""
+    return isinstance(value, list) and bool(value) and all(isinstance(g, np.random.Generator) for g in value)
 
 
 def value_problem(current: Any, initial: Any, saved: Any) -> str | None:
@@ -33,6 +38,14 @@ def value_problem(current: Any, initial: Any, saved: Any) -> str | None:
         kind = current.bit_generator.state["bit_generator"]
         if not (isinstance(saved, Mapping) and saved.get("bit_generator") == kind):
             return f"expects the state of a {kind} random generator, got {_describe(saved)}"
+        return None
+    if generators(current):
+        kinds = [g.bit_generator.state["bit_generator"] for g in current]
+        if not (isinstance(saved, list) and len(saved) == len(current)) or any(
+            not (isinstance(s, Mapping) and s.get("bit_generator") == kind)
+            for s, kind in zip(saved, kinds, strict=True)
+        ):
+            return f"expects the states of {len(current)} {kinds[0]} random generators, got {_describe(saved)}"
         return None
     if isinstance(current, np.ndarray):
         fixed = isinstance(initial, np.ndarray) and (initial.shape, initial.dtype) == (current.shape, current.dtype)

@@ -17,7 +17,9 @@ class Trace(Mapping[str, np.ndarray]):
     """Recorded signals of a run.
 
     A read-only mapping from probe name to an array of shape
-    ``(n_samples, *signal_shape)``, with the sample times in :attr:`t`.
+    ``(n_samples, *signal_shape)``, with the sample times in :attr:`t`. A trace of a batch of
+    runs (``batch=B``) holds arrays of shape ``(n_samples, B, *signal_shape)``: at each sample, the
+    batched signal; :meth:`run` picks one run.
 
     Attributes
     ----------
@@ -25,17 +27,35 @@ class Trace(Mapping[str, np.ndarray]):
         Sample times in seconds, shape ``(n_samples,)``.
     units : dict
         Unit of each signal.
+    batch : int or None
+        Runs in the trace (the axis after time), or ``None`` for a trace of one run without a batch axis.
     """
 
     def __init__(
-        self, t: np.ndarray, signals: Mapping[str, np.ndarray], units: Mapping[str, str] | None = None
+        self,
+        t: np.ndarray,
+        signals: Mapping[str, np.ndarray],
+        units: Mapping[str, str] | None = None,
+        *,
+        batch: int | None = None,
     ) -> None:
         self.t = np.asarray(t, dtype=float)
         self._signals = dict(signals)
         for name, arr in self._signals.items():
             if len(arr) != len(self.t):
                 raise ValueError(f"signal {name!r} has {len(arr)} samples but the time vector has {len(self.t)}")
+            if batch is not None and (np.ndim(arr) < 2 or np.shape(arr)[1] != batch):
+                raise ValueError(f"signal {name!r} of shape {np.shape(arr)} has no batch axis of {batch} runs")
         self.units = dict(units or {})
+        self.batch = batch
+
+    def run(self, b: int) -> Trace:
+        """The trace of run ``b`` of a batch (views, no copies), without the batch axis."""
+        if self.batch is None:
+            raise ValueError("run(b) picks one run of a batched trace; this trace has no batch axis")
+        if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or not -self.batch <= b < self.batch:
+            raise IndexError(f"run must be an index in [0, {self.batch - 1}], got {b!r}")
+        return Trace(self.t, {name: arr[:, b] for name, arr in self._signals.items()}, self.units)
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
@@ -68,10 +88,17 @@ class Trace(Mapping[str, np.ndarray]):
         ax.legend(loc="best")
         return ax
 
-    def to_pandas(self) -> Any:
-        """A ``pandas.DataFrame`` indexed by time; vector signals become ``name[i]`` columns."""
+    def to_pandas(self, *, long: bool = False) -> Any:
+        """A ``pandas.DataFrame`` indexed by time; vector signals become ``name[i]`` columns.
+
+        ``long=True`` gives the long ("tidy") frame instead, one row per sample, element (and run)
+        of every signal: columns ``run`` (batched traces only), ``t``, ``signal``, ``element``
+        (``""`` for a scalar, ``"i"`` or ``"i,j"`` for an element) and ``value``.
+        """
         import pandas as pd
 
+        if long:
+            return self._long(pd)
         columns: dict[str, np.ndarray] = {}
         for name, arr in self._signals.items():
             if arr.ndim == 1:
@@ -82,6 +109,23 @@ class Trace(Mapping[str, np.ndarray]):
                     j = int(np.ravel_multi_index(idx, arr.shape[1:]))
                     columns[f"{name}[{','.join(map(str, idx))}]"] = flat[:, j]
         return pd.DataFrame(columns, index=pd.Index(self.t, name="t"))
+
+    def _long(self, pd: Any) -> Any:
+        runs = [(None, self)] if self.batch is None else [(b, self.run(b)) for b in range(self.batch)]
+        frames = []
+        for b, one in runs:
+            for name, arr in one._signals.items():
+                n, shape = len(arr), arr.shape[1:]
+                flat = np.asarray(arr, dtype=float).reshape(n, -1)
+                labels = [",".join(map(str, idx)) for idx in np.ndindex(*shape)]
+                frame = {"t": np.repeat(self.t, len(labels)), "signal": name}
+                frame["element"] = np.tile(np.array(labels, dtype=object), n)
+                frame["value"] = flat.reshape(-1)
+                frames.append(pd.DataFrame(frame if b is None else {"run": b, **frame}))
+        columns = (
+            ["t", "signal", "element", "value"] if self.batch is None else ["run", "t", "signal", "element", "value"]
+        )
+        return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the trace to ``path``: ``.npz`` (NumPy, no pickles) or ``.parquet`` (pyarrow).
@@ -96,6 +140,7 @@ class Trace(Mapping[str, np.ndarray]):
             "signals": names,
             "units": self.units,
             "shapes": {name: list(self._signals[name].shape[1:]) for name in names},
+            "batch": self.batch,
         }
         kind = _trace_kind(path)
         if kind == "npz":
@@ -128,7 +173,7 @@ class Trace(Mapping[str, np.ndarray]):
             with open_npz(path, "cogblocks trace") as stored:
                 meta = _trace_meta(path, str(stored["meta"]) if "meta" in stored.files else None)
                 signals = {name: stored[f"signal{i}"] for i, name in enumerate(meta["signals"])}
-                return cls(stored["t"], signals, meta["units"])
+                return cls(stored["t"], signals, meta["units"], batch=meta.get("batch"))
         import pyarrow.parquet as pq
 
         from cogblocks.sim.reading import FileFormatError, existing_file
@@ -150,7 +195,7 @@ class Trace(Mapping[str, np.ndarray]):
                 continue
             cols = [table.column(f"{name}[{','.join(map(str, idx))}]").to_numpy() for idx in np.ndindex(*shape)]
             signals[name] = np.stack(cols, axis=1).reshape((len(t), *shape))
-        return cls(t, signals, meta["units"])
+        return cls(t, signals, meta["units"], batch=meta.get("batch"))
 
 
 _TRACE_FORMAT = "cogblocks.trace/1"

@@ -15,6 +15,8 @@ import warnings
 from dataclasses import asdict, replace
 from typing import Any
 
+import numpy as np
+
 from cogblocks.blocks.angles import TWO_PI, wrap_angle
 from cogblocks.blocks.specs import PHASE
 from cogblocks.sim import Block, Signal
@@ -99,7 +101,10 @@ class Blender(Block):
     Bad data policy: a non-finite ``theta_l0`` holds the last outputs and does
     not advance λ; a non-finite ``theta_ref`` asks for no alteration
     (``θ_L2 = θ_L0`` with the deliverable's law; the continuous one slews toward it).
+    In a batch (the block runs one at once) this holds run by run.
     """
+
+    batchable = True
 
     def __init__(
         self,
@@ -156,6 +161,9 @@ class Blender(Block):
         self.add_state("shift_now", 0.0)  # the alteration θ_L2 − θ_L0 of the last tick (the continuous law's memory)
 
     def setup(self) -> None:
+        lead = self.batch_shape  # λ and the last alteration, one per run of a batch
+        self.add_state("lam_now", np.full(lead, self.lam_max) if lead else self.lam_max)
+        self.add_state("shift_now", np.zeros(lead) if lead else 0.0)
         # the λ dynamics must be stable for this step, both along the linear pieces and at the
         # equilibrium where the blender sits at its limit (see cogblocks.sync.stability)
         try:
@@ -195,7 +203,41 @@ class Blender(Block):
             return 0.0
         return alteration(d, self.lam_now, self.params, self.shift_now, self.dt)
 
+    def _shift_rows(self, theta_l0: np.ndarray) -> np.ndarray:
+        """:meth:`_shift` of every run of a batch, with the same operations on arrays."""
+        theta_ref = self.theta_ref.value
+        asked = np.isfinite(theta_ref)
+        with np.errstate(invalid="ignore"):
+            d = np.where(asked, np.pi - np.mod(np.pi - (theta_ref - theta_l0), TWO_PI), 0.0)
+        shift = alteration(d, self.lam_now, self.params, self.shift_now, self.dt)
+        return np.where(asked, shift, 0.0) if self.params.deliverable_law else shift
+
+    def _rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """θ_L0, the alteration, θ_L2 of every run and the runs with a finite θ_L0 (None: all of them)."""
+        theta_l0 = self.theta_l0.value
+        ok = np.isfinite(theta_l0)
+        with np.errstate(invalid="ignore"):
+            shift = self._shift_rows(theta_l0)
+            theta_l2 = np.mod(theta_l0 + shift, TWO_PI)
+        theta_l2[theta_l2 >= TWO_PI] = 0.0
+        return theta_l0, shift, theta_l2, None if ok.all() else ok
+
+    def _output_rows(self) -> None:
+        _, _, theta_l2, ok = self._rows()
+        np.copyto(self.theta_l2.value, theta_l2, where=True if ok is None else ok)
+        np.copyto(self.lam.value, self.lam_now, where=True if ok is None else ok)
+
+    def _update_rows(self) -> None:
+        theta_l0, shift, theta_l2, ok = self._rows()
+        with np.errstate(invalid="ignore"):
+            lam = lam_step(self.lam_now, np.pi - np.mod(np.pi - (theta_l2 - theta_l0), TWO_PI), self.params, self.dt)
+        np.copyto(self.lam_now, lam, where=True if ok is None else ok)
+        np.copyto(self.shift_now, shift, where=True if ok is None else ok)
+
     def output(self, k: int) -> None:
+        if self.batch is not None:
+            self._output_rows()
+            return
         theta_l0 = float(self.theta_l0.value)
         if not math.isfinite(theta_l0):
             return
@@ -204,6 +246,9 @@ class Blender(Block):
         self.lam.value[...] = self.lam_now
 
     def update(self, k: int) -> None:
+        if self.batch is not None:
+            self._update_rows()
+            return
         theta_l0 = float(self.theta_l0.value)
         if not math.isfinite(theta_l0):
             return

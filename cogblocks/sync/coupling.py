@@ -93,18 +93,25 @@ class Coupling:
             self.matrix = adjacency_matrix(graph, n)
             self._diff = np.zeros((n, n))
 
+    def size_for(self, lead: tuple[int, ...]) -> None:
+        """Size the work buffer for phases with the leading axes ``lead`` (``(B,)`` for a batch of B runs)."""
+        if not self.sparse:
+            self._diff = np.zeros(lead + (self.n, self.n))
+
     def pull(self, seen: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Write ``Σ_j a_ij sin(seen_j − seen_i)`` for every i into ``out`` (shape (N,)) and return it."""
+        """Write ``Σ_j a_ij sin(seen_j − seen_i)`` for every i into ``out`` (shape (N,), or (B, N) for a batch
+        sized by :meth:`size_for`) and return it; each row of a batch is computed as that row alone would be."""
         if self.sparse:
-            terms = np.sin(seen[self.cols] - seen[self.rows])
-            terms *= self.weights
-            out[...] = np.bincount(self.rows, weights=terms, minlength=self.n)
+            for row_seen, row_out in zip(seen.reshape(-1, self.n), out.reshape(-1, self.n), strict=True):
+                terms = np.sin(row_seen[self.cols] - row_seen[self.rows])
+                terms *= self.weights
+                row_out[...] = np.bincount(self.rows, weights=terms, minlength=self.n)
             return out
         d = self._diff
-        np.subtract(seen[None, :], seen[:, None], out=d)
+        np.subtract(seen[..., None, :], seen[..., :, None], out=d)
         np.sin(d, out=d)
         d *= self.matrix
-        return np.add.reduce(d, axis=1, out=out)
+        return np.add.reduce(d, axis=-1, out=out)
 
     def row(self, i: int) -> np.ndarray:
         """Row ``i`` of the adjacency matrix, dense, shape (N,)."""

@@ -151,6 +151,12 @@ class DQNPolicy:
             values = self.network(torch.as_tensor(self.observation(context), dtype=torch.float32))
         return int(values.argmax())
 
+    def act_rows(self, context: L3Context) -> np.ndarray:
+        """The action of every run of a batch: ``context``'s fields hold one row per run; one forward pass."""
+        with torch.no_grad():
+            values = self.network(torch.as_tensor(self.observation(context), dtype=torch.float32))
+        return values.argmax(dim=-1).numpy()
+
     def predictor(self) -> NumpyDQNPolicy:
         """A copy for predictions that run the policy ahead many times per tick (the network in float64 NumPy).
 
@@ -176,10 +182,14 @@ class NumpyDQNPolicy(DQNPolicy):
 
     def act(self, context: L3Context) -> int:
         """Action with the highest value for this tick's observation."""
+        return int(self.act_rows(context))
+
+    def act_rows(self, context: L3Context) -> np.ndarray:
+        """The action of every run of a batch (``context``'s fields one row per run), in float64 NumPy."""
         x = self.observation(context)
         last = len(self.weights) - 1
         for i, (weight, bias) in enumerate(zip(self.weights, self.biases, strict=True)):
             x = x @ weight + bias
             if i < last:
                 x = np.maximum(x, 0.0)
-        return int(np.argmax(x))
+        return np.argmax(x, axis=-1)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import TYPE_CHECKING, Any
 
@@ -77,14 +78,18 @@ class KuramotoGroup(Block):
     drift_tau : float
         Time constant of the drift in s, > 0 (δ's autocorrelation is
         ``exp(−lag / drift_tau)``; stepped exactly, not by Euler).
-    seed : int, SeedSequence or Generator
+    seed : int, SeedSequence, Generator or sequence of int
         Seed of the noise. Each tick draws one fixed vector of 2N standard
         normals (phase noise, then drift), whatever the phases and inputs, so
         two blocks with the same seed see the same noise whatever L2 does
-        (common random numbers).
+        (common random numbers). A sequence gives one seed per run of a batch.
 
     Notes
     -----
+    The block runs a batch of runs at once (``compile(dt, batch=B)``): ``omega`` and ``theta0``
+    may then hold one row per run (shape (B, N)), ``gain`` one value per run (shape (B,)), ``seed``
+    one seed per run; each row is the run of a block built with that row's values, bit for bit.
+
     Bad data policy: for that tick, a non-finite frequency is replaced by the
     constructor's ``omega`` and a non-finite θ_L2 by the assisted
     participant's own phase, so the phases stay finite.
@@ -111,17 +116,26 @@ class KuramotoGroup(Block):
         seed: Any = 0,
     ) -> None:
         super().__init__(period=period)
-        self.omega0 = finite_array(self, "omega", omega, ndim=1)
+        self.omega0 = finite_array(self, "omega", omega)
+        if self.omega0.ndim not in (1, 2):
+            raise ValueError(
+                f"KuramotoGroup: omega must have shape (N,), or (B, N) for a batch of B runs, got {self.omega0.shape}"
+            )
         if np.any(np.abs(self.omega0) > MAX_OMEGA):
             raise ValueError(
                 f"KuramotoGroup: omega must lie in [-{MAX_OMEGA:g}, {MAX_OMEGA:g}] rad/s (about "
                 f"{MAX_OMEGA / TWO_PI:.0f} Hz, above any human movement), got {np.max(np.abs(self.omega0)):.3g}"
             )
-        n = len(self.omega0)
+        n = self.omega0.shape[-1]
         if n < 2:
             raise ValueError(f"KuramotoGroup: omega must hold at least 2 frequencies, got {n}")
         self.n = n
-        self.gain = finite_number(self, "gain", gain, low=0.0)
+        if np.ndim(gain) == 1:  # one gain per run of a batch
+            self.gain = finite_array(self, "gain", gain, ndim=1)
+            if np.any(self.gain < 0):
+                raise ValueError(f"KuramotoGroup: gain must be >= 0, got {gain!r}")
+        else:
+            self.gain = finite_number(self, "gain", gain, low=0.0)
         if sparse is not None and not isinstance(sparse, (bool, np.bool_)):
             raise ValueError(f"KuramotoGroup: sparse must be True, False or None, got {sparse!r}")
         self.add_scratch("coupling", None)  # the graph and its work buffer
@@ -135,14 +149,17 @@ class KuramotoGroup(Block):
             )
         self.assisted = None if assisted is None else int(assisted)
         theta0 = finite_array(self, "theta0", theta0)
-        if theta0.shape not in ((), (n,)):
-            raise ValueError(f"KuramotoGroup: theta0 must be a number or of shape ({n},), got shape {theta0.shape}")
-        theta0 = np.broadcast_to(theta0, (n,))
+        if theta0.shape not in ((), (n,)) and not (theta0.ndim == 2 and theta0.shape[1] == n):
+            raise ValueError(
+                f"KuramotoGroup: theta0 must be a number or of shape ({n},), or (B, {n}) for a batch, "
+                f"got shape {theta0.shape}"
+            )
+        self._theta0 = np.mod(np.broadcast_to(theta0, theta0.shape[:-1] + (n,) if theta0.ndim else (n,)), TWO_PI)
         self.add_input("omega", shape=(n,), unit="rad/s", default=self.omega0, feedthrough=False)
         if self.assisted is not None:
             self.add_input("theta_l2", PHASE, feedthrough=False)
-        self.add_output("theta", PHASE.with_(shape=(n,)), initial=np.mod(theta0, TWO_PI))
-        self.add_state("phase", np.mod(theta0, TWO_PI).astype(float))
+        self.add_output("theta", PHASE.with_(shape=(n,)), initial=self._theta0)
+        self.add_state("phase", self._theta0.astype(float))
         self.add_scratch("_seen", np.zeros(n))  # the phases and pulls of this tick, work buffers
         self.add_scratch("_rate", np.zeros(n))
         self._init_noise(noise, drift_spread, drift_tau, seed)
@@ -160,19 +177,57 @@ class KuramotoGroup(Block):
         if not self.drift_tau > 0:
             raise ValueError(f"KuramotoGroup: drift_tau must be > 0 s, got {drift_tau!r}")
         self.noisy = bool(self.noise.any() or self.drift_spread.any())
-        rng = random_generator(self, "seed", seed)  # checked even without noise: a bad seed is a mistake either way
+        # checked even without noise: a bad seed is a mistake either way
+        many = isinstance(seed, (list, tuple, np.ndarray))
+        if many and len(seed) == 0:
+            raise ValueError("KuramotoGroup: seed must be a seed or a non-empty sequence of per-run seeds, got []")
+        # the generators as built, never drawn from: each compile starts the runs' generators from copies
+        self._pristine = [random_generator(self, "seed", s) for s in (seed if many else [seed])]
+        self._per_run_seeds = many
         if self.noisy:
-            self.add_state("rng", rng)
+            self.add_state("rng", copy.deepcopy(self._pristine[0]))
             self.add_state("drift", np.zeros(self.n))
             self.add_scratch("_draw", np.zeros(2 * self.n))  # the tick's normal draws, a work buffer
 
+    batchable = True
+
     def setup(self) -> None:
         super().setup()
+        self._size_for_batch()
         if self.noisy:  # the step's constants, once dt is known
             decay = math.exp(-self.dt / self.drift_tau)
             self._decay = decay
             self._kick = self.drift_spread * np.abs(self.omega0) * math.sqrt(1.0 - decay * decay)
             self._diffusion = self.noise * math.sqrt(self.dt)
+
+    def _size_for_batch(self) -> None:
+        """The state and work buffers with the batch axis; rows of per-run parameters checked against the batch."""
+        lead, n = self.batch_shape, self.n
+        gain = np.asarray(self.gain)
+        for name, value in (
+            ("omega", self.omega0),
+            ("theta0", self._theta0),
+            ("gain", gain[:, None] if gain.ndim else gain),
+        ):
+            if value.ndim == 2 and value.shape[0] != self.batch:
+                raise self._fail(
+                    f"{name} holds {value.shape[0]} runs (shape {value.shape}); compile with batch={value.shape[0]}"
+                )
+        seeds = self._pristine
+        if self._per_run_seeds and len(seeds) != self.batch:
+            raise self._fail(f"seed holds {len(seeds)} per-run seeds; compile with batch={len(seeds)}")
+        self.add_state("phase", np.array(np.broadcast_to(self._theta0, lead + (n,)), dtype=float))
+        self.add_scratch("_seen", np.zeros(lead + (n,)))
+        self.add_scratch("_rate", np.zeros(lead + (n,)))
+        self.coupling.size_for(lead)
+        self._gain = gain[:, None] if gain.ndim else self.gain  # broadcasts over each run's participants
+        if self.noisy:
+            self.add_state("drift", np.zeros(lead + (n,)))
+            self.add_scratch("_draw", np.zeros(lead + (2 * n,)))
+            if self.batch is None:
+                self.add_state("rng", copy.deepcopy(seeds[0]))
+            else:  # one generator per run: each row draws what its own run would
+                self.add_state("rng", [copy.deepcopy(seeds[b if len(seeds) > 1 else 0]) for b in range(self.batch)])
 
     @classmethod
     def for_group(cls, group: SyncGroup, *, assisted: bool = True, adjacency: Any = None) -> KuramotoGroup:
@@ -188,7 +243,10 @@ class KuramotoGroup(Block):
     def update(self, k: int) -> None:
         seen = self._seen
         seen[...] = self.phase
-        if self.assisted is not None:
+        if self.assisted is not None and self.batch is not None:  # each run's own θ_L2, where finite
+            theta_l2 = self.theta_l2.value
+            np.copyto(seen[:, self.assisted], theta_l2, where=np.isfinite(theta_l2))
+        elif self.assisted is not None:
             theta_l2 = float(self.theta_l2.value)
             if math.isfinite(theta_l2):
                 seen[self.assisted] = theta_l2
@@ -196,7 +254,7 @@ class KuramotoGroup(Block):
         if self.omega.driven and not np.isfinite(omega).all():  # the default is finite by construction
             omega = np.where(np.isfinite(omega), omega, self.omega0)
         rate = self.coupling.pull(seen, self._rate)
-        rate *= self.gain
+        rate *= self._gain
         rate += omega
         rate *= self.dt
         phase = self.phase
@@ -224,8 +282,9 @@ class KuramotoGroup(Block):
         path, drifts = np.zeros((n_steps, self.n)), np.zeros((n_steps, self.n))
         if not self.noisy:
             return path, drifts
-        rng = np.random.default_rng()
-        rng.bit_generator.state = self._state_init["rng"]
+        if self._per_run_seeds:
+            raise ValueError("KuramotoGroup: noise_path and drift_path are those of a block with one seed")
+        rng = copy.deepcopy(self._pristine[0])
         decay = math.exp(-dt / self.drift_tau)
         kick = self.drift_spread * np.abs(self.omega0) * math.sqrt(1.0 - decay * decay)
         diffusion = self.noise * math.sqrt(dt)
@@ -243,11 +302,15 @@ class KuramotoGroup(Block):
     def _add_noise(self, phase: np.ndarray) -> None:
         """This tick's drift and diffusion; one draw of 2N normals per tick whatever the state (common numbers)."""
         n, draw, drift = self.n, self._draw, self.drift
-        self.rng.standard_normal(out=draw)
+        if self.batch is None:
+            self.rng.standard_normal(out=draw)
+        else:
+            for generator, row in zip(self.rng, draw, strict=True):
+                generator.standard_normal(out=row)
         phase += self.dt * drift
-        phase += self._diffusion * draw[:n]
+        phase += self._diffusion * draw[..., :n]
         drift *= self._decay
-        drift += self._kick * draw[n:]
+        drift += self._kick * draw[..., n:]
 
 
 class KuramotoOscillator(Block):

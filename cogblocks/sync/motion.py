@@ -237,15 +237,31 @@ class MeanPhaseMotion(MotionComputer):
 
     Notes
     -----
-    Bad data policy: non-finite phases are left out; with none left the
-    output holds.
+    Bad data policy: non-finite phases are left out; with none left the output holds (run by run in a batch).
     """
+
+    batchable = True
 
     def __init__(self, n: int, assisted: int, *, period: float | None = None) -> None:
         super().__init__(n, assisted, period)
         self.others = np.array([j for j in range(n) if j != assisted])
 
+    def _output_rows(self) -> None:
+        phases = self.theta.value[:, self.others]
+        if math.isfinite(np.add.reduce(phases, axis=None)):  # one cheap check for the whole batch
+            cos, sin = np.cos(phases), np.sin(phases)
+        else:  # the non-finite phases are left out
+            with np.errstate(invalid="ignore"):
+                cos, sin = (np.where(np.isfinite(phases), f(phases), 0.0) for f in (np.cos, np.sin))
+        c, s = cos.sum(axis=-1), sin.sum(axis=-1)
+        theta_ref = np.mod(np.arctan2(s, c), 2.0 * math.pi)
+        theta_ref[theta_ref >= 2.0 * math.pi] = 0.0
+        np.copyto(self.theta_ref.value, theta_ref, where=(c != 0) | (s != 0))
+
     def output(self, k: int) -> None:
+        if self.batch is not None:
+            self._output_rows()
+            return
         phases = self.theta.value[self.others]
         if not np.isfinite(phases).all():
             phases = phases[np.isfinite(phases)]
@@ -286,6 +302,8 @@ class OscillatorMotion(MotionComputer):
     Bad data policy: on a tick with a non-finite phase or λ the policy is not
     asked (it only ever sees finite contexts) and the oscillator coasts at its
     last frequency, without coupling.
+    Runs a batch at once when the policy has ``act_rows(context)`` (context fields and actions one row
+    per run, as :class:`~cogblocks.sync.DQNPolicy`): one call per tick for the batch; else per row.
     """
 
     _theta_feedthrough = False
@@ -312,6 +330,29 @@ class OscillatorMotion(MotionComputer):
         self.add_state("theta_l3", 0.0)
         self.add_state("omega_prev", self.omega_init)
 
+    @property
+    def batchable(self) -> bool:  # type: ignore[override]
+        """Whether the policy chooses for a batch of runs in one call (``act_rows``)."""
+        return callable(getattr(self.policy, "act_rows", None))
+
+    def setup(self) -> None:
+        for name, start in (("theta_l3", 0.0), ("omega_prev", self.omega_init)):  # one per run of a batch
+            self.add_state(name, np.full(self.batch_shape, start) if self.batch is not None else start)
+
+    def _update_rows(self, k: int) -> None:
+        theta, lam, theta_l3, omega_prev = self.theta.value, self.lam.value, self.theta_l3, self.omega_prev
+        ok = np.isfinite(theta).all(axis=-1) & np.isfinite(lam)
+        theta, lam = np.where(ok[:, None], theta, 0.0), np.where(ok, lam, math.pi)  # the policy sees finite rows
+        obs = l3_observation(theta_l3, theta[:, self.others], omega_prev)
+        context = L3Context(k, obs, theta, theta_l3.copy(), lam, omega_prev.copy(), self.assisted)
+        actions = np.asarray(self.policy.act_rows(context))
+        omega = np.minimum(np.maximum(omega_prev + ACTIONS[actions], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
+        pull = np.sin(theta - theta_l3[:, None]) @ self.coupling
+        np.mod(np.where(ok, theta_l3 + self.dt * (omega + self.gain * pull), theta_l3 + self.dt * omega_prev),
+               2.0 * math.pi, out=theta_l3)  # fmt: skip
+        theta_l3[theta_l3 >= 2.0 * math.pi] = 0.0
+        np.copyto(omega_prev, omega, where=ok)
+
     def plan_through(self, blender: BlenderParams) -> None:
         """Hand ``blender`` to the policy, if it predicts (a :class:`~cogblocks.sync.lookahead.LookaheadPolicy`)."""
         if callable(getattr(self.policy, "plan_through", None)):
@@ -326,6 +367,9 @@ class OscillatorMotion(MotionComputer):
         self.theta_ref.value[...] = self.theta_l3
 
     def update(self, k: int) -> None:
+        if self.batch is not None:
+            self._update_rows(k)
+            return
         theta, lam = self.theta.value, float(self.lam.value)
         if not (np.all(np.isfinite(theta)) and math.isfinite(lam)):
             # no trustworthy context: keep the frequency, coast on the oscillator's own rate

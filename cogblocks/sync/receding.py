@@ -39,6 +39,7 @@ from cogblocks.sync.blending import BlenderParams, alteration
 from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import DT
 from cogblocks.sync.motion import _IdentifyingMotion
+from cogblocks.sync.rollouts import stepped
 from cogblocks.sync.sweeps import checked_sweeps
 from cogblocks.sync.whole_run import (
     alteration_rollout,
@@ -333,10 +334,9 @@ class RecedingPlanMotion(_IdentifyingMotion):
         state = np.asarray(state, dtype=float)
         # ω and K ride in the state of the one tick model, before the blender's memory
         x = np.r_[state[: self.n + 1], omega, gain, state[self.n + 1 :]]
-        for j in range(k, start):  # through the plan in force to the new plan's first tick
-            i = -1 if committed is None else j - committed[2]
-            a = float(committed[0][i]) if committed is not None and 0 <= i < len(committed[0]) else 0.0
-            x = np.asarray(tick(x, min(max(a / x[self.n], -1.0), 1.0))[0], dtype=float).ravel()
+        a, first = (np.zeros(0), k) if committed is None else committed[::2]  # through the plan in force …
+        through = [a[j - first] if 0 <= j - first < len(a) else 0.0 for j in range(k, start)]
+        x = stepped(tick, x, through, self.n)  # … to the new plan's first tick
         n_ticks = stop - start
         roll = rollout_function(tick, self._solvers)
         nothing = float(alteration_rollout(roll, x, np.zeros(n_ticks))[1].mean())

@@ -24,6 +24,7 @@ import numpy as np
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sync.blending import BlenderParams, alteration, lam_step
 from cogblocks.sync.model import DT
+from cogblocks.sync.rollouts import CHUNK, alteration_rollout, memory, rollout_function, rule_rollouts
 
 __all__ = [
     "CHUNK",
@@ -44,8 +45,6 @@ __all__ = [
     "switch_rules",
     "tick_model",
 ]
-
-CHUNK = 1000  # ticks per casadi rollout call
 
 
 def _tick(
@@ -72,14 +71,6 @@ def _tick(
     a = ca.sparsify(ca.DM(adjacency))
     pull = cos_s * ca.mtimes(a, sin_s) - sin_s * ca.mtimes(a, cos_s)
     return theta + DT * (omega + gain * pull), lam_step(lam, shift, params, DT), r, shift
-
-
-def memory(params: BlenderParams) -> int:
-    """Entries the model's state carries for the blender's memory: the last alteration (1) with a slew limit, else 0.
-
-    The state of :func:`tick_model` is ``(θ, λ)`` followed by them, that of :func:`identified_tick_model`
-    ``(θ, λ, ω, K)`` followed by them."""
-    return 0 if params.slew is None else 1
 
 
 def played(states: np.ndarray, s: np.ndarray, n: int, params: BlenderParams) -> np.ndarray:
@@ -115,65 +106,6 @@ def identified_tick_model(n: int, assisted: int, adjacency: np.ndarray, params: 
     omega, gain = x[n + 1 : 2 * n + 1], x[2 * n + 1]
     theta, lam, r, shift = _tick(x, s, omega, gain, n, assisted, adjacency, params)
     return ca.Function("identified_tick", [x, s], [ca.vertcat(theta, lam, omega, gain, *[shift] * memory(params)), r])
-
-
-def alteration_rollout(roll: ca.Function, x0: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """States before each tick (``len(s)`` × (N + 1)) and r of each tick, for the alteration fractions ``s``.
-
-    ``roll`` is :func:`tick_model` mapped over :data:`CHUNK` ticks (``tick.mapaccum("roll", CHUNK)``);
-    ``x0 = (θ, λ)``; the last chunk is padded.
-    """
-    states, rs = [], []
-    x = ca.DM(x0)
-    for start in range(0, len(s), CHUNK):
-        part = s[start : start + CHUNK]
-        xs, r = roll(x, np.pad(part, (0, CHUNK - len(part)))[None, :])
-        xs, r = np.asarray(xs), np.asarray(r).ravel()
-        before = np.column_stack([np.asarray(x), xs[:, :-1]])  # the state each tick starts from
-        states.append(before[:, : len(part)].T)
-        rs.append(r[: len(part)])
-        x = ca.DM(before[:, len(part)]) if len(part) < CHUNK else ca.DM(xs[:, -1])
-    return np.concatenate(states), np.concatenate(rs)
-
-
-def rule_rollouts(
-    group: SyncGroup,
-    adjacency: np.ndarray,
-    params: BlenderParams,
-    state: np.ndarray,
-    rules: tuple[np.ndarray, np.ndarray, np.ndarray],
-    n_ticks: int,
-    record: bool,
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """Reference rules in closed loop from ``state`` (θ, λ), all at once on the exact NumPy model.
-
-    ``rules = (kind, phase0, freq)``: kind 0 does nothing (θ_ref = θ_L0), 1 follows the circular mean of the
-    others, 2 is the constant frequency θ_ref = phase0 + freq · t (t from ``state``). Returns the r of every tick
-    and rule (``n_ticks`` × rules) if ``record``, else only their sums, and the alteration fractions if ``record``.
-    """
-    kind, phase0, freq = rules
-    b, i, n = len(kind), group.assisted, group.n
-    others = np.arange(n) != i
-    omega = np.asarray(group.omega, dtype=float)
-    theta, lam = np.tile(state[:n], (b, 1)), np.full(b, state[n])
-    shift = np.full(b, state[-1] if memory(params) else 0.0)
-    total = np.zeros((n_ticks, b) if record else b)
-    s = np.zeros((n_ticks, b)) if record else None
-    for k in range(n_ticks):
-        z = np.exp(1j * theta)
-        reference = np.where(kind == 1, np.angle(z[:, others].sum(axis=1)), phase0 + freq * (k * DT))
-        l0 = theta[:, i]
-        d = np.where(kind == 0, 0.0, np.mod(reference - l0 + np.pi, 2 * np.pi) - np.pi)
-        shift = alteration(d, lam, params, shift, DT)
-        z[:, i] = np.exp(1j * (l0 + shift))
-        r = np.abs(z.sum(axis=1)) / n
-        if record:
-            total[k], s[k] = r, shift / lam
-        else:
-            total += r
-        lam = lam_step(lam, shift, params, DT)
-        theta = theta + DT * (omega + group.gain * (z.conj() * (z @ adjacency.T)).imag)
-    return total, (np.clip(s, -1.0, 1.0) if record else None)
 
 
 def switch_rules(
@@ -236,15 +168,6 @@ def sweep_solvers(tick: ca.Function, ticks: tuple[int, int, int, int], max_iter:
     if key not in solvers:
         solvers[key] = (rollout_function(tick, solvers), *_window_solver(tick, *ticks[:3], max_iter, expand=True))
     return solvers[key]
-
-
-def rollout_function(tick: ca.Function, solvers: dict | None = None) -> ca.Function:
-    """``tick`` mapped over :data:`CHUNK` ticks, as :func:`alteration_rollout` takes it (cached in ``solvers``)."""
-    if solvers is None:
-        return tick.mapaccum("roll", CHUNK)
-    if "roll" not in solvers:
-        solvers["roll"] = tick.mapaccum("roll", CHUNK)
-    return solvers["roll"]
 
 
 def sweep_ticks(window: float, tail: float, knot: float, screen: float) -> tuple[int, int, int, int]:

@@ -60,3 +60,26 @@ def test_snapshot_restores_the_ring():
 def test_capacity_is_validated():
     with pytest.raises(ValueError, match="capacity must be an integer >= 1"):
         Buffer(0)
+
+
+def test_a_batch_buffers_each_run_and_a_bad_sample_stays_in_its_run():
+    n, capacity, runs = 9, 4, 3
+    rng = np.random.default_rng(5)
+    v, p = rng.normal(size=(n, runs, 3)), rng.normal(size=(n, runs, 3))
+    v[4, 1, 2] = np.nan  # run 1 keeps its last good sample there
+    p[6, 2, 0] = 1e9  # implausible: run 2 keeps its last good position
+    d = Diagram()
+    pv = d.add("v", Playback(v, unit="mm/s", per_run=True))
+    pp = d.add("p", Playback(p, unit="mm", per_run=True))
+    buf = d.add("buffer", Buffer(capacity))
+    d.connect(pv.y, buf.v)
+    d.connect(pp.y, buf.p)
+    probes = {name: f"buffer.{name}" for name in ("velocity", "position", "count")}
+    sim = Simulator(d, probes=probes, batch=runs)
+    assert sim.compiled.per_row == ()
+    batched = sim.run(n_steps=n)
+    for b in range(runs):
+        alone = buffered(v[:, b], p[:, b], capacity)[1].run(n_steps=n)
+        for name in probes:
+            np.testing.assert_array_equal(batched.run(b)[name], alone[name])
+    assert np.isfinite(batched["velocity"]).all()

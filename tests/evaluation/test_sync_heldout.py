@@ -7,7 +7,7 @@ import dataclasses
 
 import pytest
 
-from cogblocks.data.groups import GroupNoise, SyncGroup, random_groups
+from cogblocks.data.groups import TABLE2, GroupNoise, SyncGroup, random_groups
 from cogblocks.diagrams.sync import run_sync
 from cogblocks.evaluation.sync_heldout import evaluate_group, heldout_table, summarise
 from cogblocks.sync import GatedMotion, MeanPhaseMotion
@@ -65,3 +65,22 @@ def test_progress_sees_every_group_once_and_the_table_keeps_their_order():
         for index, row in calls:  # each group's own row, whatever order the workers finished in
             assert row == evaluate_group(groups[index], ["mean"], bound=False)
     assert [row["name"] for row in tables[2]["groups"]] == [g.name for g in groups]
+
+
+def test_the_batched_table_is_the_group_by_group_table():
+    shared = [
+        dataclasses.replace(TABLE2[2], name="a", duration=2.0),
+        dataclasses.replace(TABLE2[3], name="b", duration=1.5),
+    ]
+    groups = shared + random_groups(2, "validation", 0)
+    policies = ["mean", "dqn_raw", "pace"]  # pace does not batch: it runs group by group beside the batch
+    kwargs = {"policies": policies, "groups": groups, "bound": False, "details": True, "max_duration": 2.0}
+    batched, alone = heldout_table(0, batch=True, **kwargs), heldout_table(0, **kwargs)
+    for mine, theirs in zip(batched["groups"], alone["groups"], strict=True):
+        assert mine["r_without"] == pytest.approx(theirs["r_without"], abs=1e-12)
+        assert [r["policy"] for r in mine["results"]] == policies
+        for a, b in zip(mine["results"], theirs["results"], strict=True):
+            assert a["r_with"] == pytest.approx(b["r_with"], abs=1e-12)
+            assert a["max_dev_rad"] == pytest.approx(b["max_dev_rad"], abs=1e-12)
+    for a, b in zip(batched["policies"], alone["policies"], strict=True):
+        assert a["mean_change_pct"] == pytest.approx(b["mean_change_pct"], abs=1e-9)

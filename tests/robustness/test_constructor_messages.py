@@ -212,6 +212,7 @@ CASES = [
     case("Playback", "unit", 5, "string"),
     case("Playback", "wrapped", "yes", "bool"),
     case("Playback", "at_end", "loop", "one of ['hold', 'repeat', 'zero', 'error']"),
+    case("Playback", "per_run", "yes", "per_run must be True or False"),
     case("Mux", "n", 0, "integer >= 1"),
     case("Demux", "n", 0, "integer >= 1"),
     case("Demux", "unit", 5, "string"),

@@ -167,3 +167,45 @@ def test_evaluate_reports_change_and_alteration() -> None:
     assert 0 < with_l2["alteration_mean"] <= with_l2["alteration_max"] <= np.pi / 2
     without = evaluate(_Hold(), TABLE2[1], l2=False)
     assert without["r_with"] == without["r_without"] and without["alteration_max"] == 0
+
+
+class _Replay:
+    """An L3 policy that plays one recorded action per tick and per run (``actions[k, b]``), batched or not."""
+
+    def __init__(self, actions: np.ndarray, row: int | None = None) -> None:
+        self.actions, self.row = actions, row
+
+    def act(self, context) -> int:
+        return int(self.actions[context.k, self.row])
+
+    def act_rows(self, context) -> np.ndarray:
+        return self.actions[context.k]
+
+
+@pytest.mark.parametrize("group_number", [1, 3])
+def test_the_numpy_twin_equals_the_batched_diagram(group_number: int) -> None:
+    """SyncEnv (the vector environment's engine) is an independent reference of the closed-loop diagram."""
+    from cogblocks.diagrams.sync import pop_sync
+    from cogblocks.sim import Simulator
+    from cogblocks.sync import OscillatorMotion
+    from cogblocks.sync.blending import DELIVERABLE
+
+    group = TABLE2[group_number]
+    ticks, batch = 1000, 3
+    rng = np.random.default_rng(11)
+    actions = np.stack(
+        [
+            np.full(ticks, len(ACTIONS) - 1),
+            rng.integers(len(ACTIONS), size=ticks),
+            rng.integers(len(ACTIONS), size=ticks),
+        ],
+        axis=1,
+    )
+    env = run_env(SyncEnv.from_group(group, batch, blender=DELIVERABLE), actions)
+    motion = OscillatorMotion(_Replay(actions), n=group.n, assisted=group.assisted, gain=group.gain,
+                              omega_init=float(np.mean(group.omega)), adjacency=group.graph)  # fmt: skip
+    diagram = pop_sync(group, motion=motion, blender="deliverable")
+    trace = Simulator(diagram, probes={"theta": "group.theta", "lam": "l2.lam"}, batch=batch).run(n_steps=ticks)
+    assert np.max(np.abs(wrap_pi(trace["theta"] - env["theta"][:ticks]))) <= 1e-12
+    assert np.max(np.abs(trace["r"] - env["r"][:ticks])) <= 1e-12
+    assert np.max(np.abs(trace["lam"] - env["lam"][:ticks])) <= 1e-12
