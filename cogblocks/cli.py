@@ -200,7 +200,7 @@ def _build_parser() -> argparse.ArgumentParser:
         type=POLICY,
         metavar="NAME",
         help="motion computer(s) to run: dqn, dqn_raw, gated, lookahead, mean, mpc, plan, replan "
-        "(default: dqn, lookahead, mean and pop_sync's default, replan; with --random every one listed); "
+        "(default: dqn, lookahead, mean and pop_sync's default, gated; with --random every one listed); "
         "retired, with a warning: guard, pace; repeatable; "
         "with several, --plot FILE draws one figure per policy, FILE-<policy>",
     )

@@ -9,7 +9,7 @@ from cogblocks.diagrams.sync import DEFAULT_MOTION, DEFAULT_MOTIONS
 def test_the_main_job_runs_pop_syncs_default_motion_computer_too(capsys):
     assert main(["run", "sync", "--group", "1", "--duration", "1", "--json"]) == 0
     ran = [row["policy"] for row in json.loads(capsys.readouterr().out)["results"]]
-    assert ran == [*DEFAULT_MOTIONS, DEFAULT_MOTION] and DEFAULT_MOTION == "replan"
+    assert ran == [*DEFAULT_MOTIONS, DEFAULT_MOTION] and DEFAULT_MOTION == "gated"
 
 
 def test_plot_draws_every_policy_that_ran(capsys, tmp_path, monkeypatch):

@@ -113,13 +113,13 @@ class MotionRegistry(dict):
         return factory
 
 
-#: Motion computers available by name: each builds a fresh block for a group. ``replan`` (the default) is the planner:
+#: Motion computers available by name: each builds a fresh block for a group. ``replan`` is the planner:
 #: it identifies the group online and re-plans to the trial's end every second with the bound's search; ``plan`` is
 #: the same planner with one decision, the whole trial planned at once (offline: seconds of CPU in one tick);
 #: ``dqn_raw`` is the trained L3 policy (``python -m cogblocks.training.sync_dqn --randomised --seed 0``), ``dqn`` the
 #: same behind a shield (followed only while a prediction on the group identified online says it does not lower r);
 #: ``lookahead`` plans 25 ticks ahead on the true model; ``mean`` follows the others' circular mean; ``mpc`` plans the
-#: reference's frequency 3 s ahead on the identified model; ``gated`` is ``replan`` behind a
+#: reference's frequency 3 s ahead on the identified model; ``gated`` (the default) is ``replan`` behind a
 #: :class:`~cogblocks.sync.GatedMotion`, which switches to the circular mean once the group's one-tick prediction
 #: errors say it is noisy (people, estimated phases) and reports the world it found. Add an entry to make a policy
 #: available to :func:`pop_sync`, :func:`run_sync`, the held-out evaluation and the command line. Retired: ``guard``
@@ -149,8 +149,9 @@ MOTIONS = MotionRegistry(
     },
 )
 
-#: The motion computer :func:`pop_sync` uses when none is given (docs/pop-sync.md, "Default", says why).
-DEFAULT_MOTION = "replan"
+#: The motion computer :func:`pop_sync` uses when none is given: the planner where the group is the deterministic
+#: model (tick for tick), the circular mean where it is noisy (docs/explanation/noisy-groups.md says why).
+DEFAULT_MOTION = "gated"
 
 #: What ``run_sync`` and ``cogblocks run sync --group N`` run without a policy list: the Table 3
 #: comparison as first published here (``mpc`` is slower and runs when asked for by name).

@@ -53,14 +53,16 @@ def live_motion(name: str, group: SyncGroup) -> Block:
     """The motion computer ``name`` of :data:`MOTIONS` for a live run of ``group``, of no fixed length.
 
     ``replan`` decides on a worker thread (a decision does not fit a 10 ms tick) and plans ``horizon`` ahead
-    without a trial end; every other name is built as :data:`MOTIONS` builds it.
+    without a trial end; ``gated`` is that threaded planner behind a :class:`~cogblocks.sync.GatedMotion`, as
+    :data:`MOTIONS` gates its own; every other name is built as :data:`MOTIONS` builds it.
     """
     if name not in MOTIONS:
         raise ValueError(f"live_motion: name must be one of {sorted(MOTIONS)}, got {name!r}")
-    if name == "replan":
-        from cogblocks.sync import RecedingPlanMotion
+    if name in ("replan", "gated"):
+        from cogblocks.sync import GatedMotion, RecedingPlanMotion
 
-        return RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=None, worker="thread")
+        planner = RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=None, worker="thread")
+        return planner if name == "replan" else GatedMotion(planner)
     return MOTIONS[name](group)
 
 

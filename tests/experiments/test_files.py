@@ -14,7 +14,14 @@ from cogblocks.diagrams.amplification import pop_amplification
 from cogblocks.diagrams.sync import pop_sync
 from cogblocks.experiments.files import diagram_from_dict, diagram_to_dict, load_diagram, save_diagram
 from cogblocks.sim import Block, Diagram, DiagramError, Signal, Simulator
-from cogblocks.sync import ArmPositions, KuramotoGroup, MeanPhaseMotion, OscillatorMotion, RecedingPlanMotion
+from cogblocks.sync import (
+    ArmPositions,
+    GatedMotion,
+    KuramotoGroup,
+    MeanPhaseMotion,
+    OscillatorMotion,
+    RecedingPlanMotion,
+)
 
 torch.set_num_threads(1)
 
@@ -30,15 +37,17 @@ def same_run(a, b, n_steps, probes=None):
 
 def test_pop_sync_reloads_bit_identical(tmp_path):
     probes = ["group.theta", "l2.lam"]
-    # 400 ticks: the default planner has decided four times and played three of its plans
+    # 400 ticks: the default (the planner behind the noise gate) has decided four times and played three of its
+    # plans, and the gate has found the group to be the deterministic model
     reference = Simulator(pop_sync(3, blender="deliverable"), probes=probes).run(n_steps=400)
     assert reference["r"].std() > 0  # something happens in the run compared
     for suffix in (".json", ".yaml"):
         loaded = load_diagram(save_diagram(pop_sync(3, blender="deliverable"), tmp_path / f"sync{suffix}"))
-        assert type(loaded["l2"]).__name__ == "L2Sync" and isinstance(loaded["l2.motion"], RecedingPlanMotion)
+        assert type(loaded["l2"]).__name__ == "L2Sync" and isinstance(loaded["l2.motion"], GatedMotion)
+        assert isinstance(loaded["l2.motion.model"], RecedingPlanMotion)
         trace = Simulator(loaded, probes=probes).run(n_steps=400)
         assert list(trace) == list(reference) and trace.units == reference.units
-        assert len(loaded["l2.motion"].plans) == 3
+        assert len(loaded["l2.motion.model"].plans) == 3 and loaded["l2.motion"].world == "model"
         for name in reference:
             np.testing.assert_array_equal(trace[name], reference[name], strict=True)
 
@@ -140,9 +149,18 @@ def test_errors_are_those_of_python_and_name_the_file(tmp_path):
     with pytest.raises(ValueError, match=r"sync\.json: block 'group': unknown block type 'KuramotoGrup'; known: \["):
         load_diagram(write(bad))
 
+    # the default motion computer is the planner behind the noise gate: a bad parameter of either is named
     bad = json.loads(json.dumps(good))
-    bad["root"]["diagram"]["blocks"]["l2"]["params"]["motion"]["block"]["params"]["colour"] = 1
+    gated = bad["root"]["diagram"]["blocks"]["l2"]["params"]["motion"]["block"]
+    assert gated["type"] == "GatedMotion" and gated["params"]["model"]["block"]["type"] == "RecedingPlanMotion"
+    gated["params"]["model"]["block"]["params"]["colour"] = 1
     kind, message = python_error(lambda: RecedingPlanMotion(5, 3, end=1.0, colour=1))
+    with pytest.raises(kind) as info:
+        load_diagram(write(bad))
+    assert str(info.value) == f"{path}: block 'l2': {message}"
+    del gated["params"]["model"]["block"]["params"]["colour"]
+    gated["params"]["colour"] = 1
+    kind, message = python_error(lambda: GatedMotion(RecedingPlanMotion(5, 3, end=1.0), colour=1))
     with pytest.raises(kind) as info:
         load_diagram(write(bad))
     assert str(info.value) == f"{path}: block 'l2': {message}"

@@ -215,3 +215,38 @@ def test_replan_decides_on_its_thread_live_and_plays_what_it_would_offline(lsl, 
     )
     np.testing.assert_allclose(offline, report.trace["theta_l2"], rtol=0, atol=1e-12)
     assert [p[0] for p in offline_block.plans] == [p[0] for p in block.plans]
+
+
+def test_gated_runs_the_threaded_planner_behind_the_gate_live_and_plays_what_it_would_offline(
+    lsl, streamer, stream_name
+):
+    from cogblocks.data.groups import TABLE2
+    from cogblocks.live import live_sync, run_realtime
+    from cogblocks.sync import GatedMotion, L2Sync, RecedingPlanMotion
+    from cogblocks.sync.gated import NoiseGate
+
+    group = TABLE2[1]
+    omega = np.asarray(group.omega)
+    streamer(f"{stream_name}-phases", lambda t: np.mod(omega * t, 2 * np.pi), channels=group.n, unit="rad")
+    sync = live_sync(f"{stream_name}-phases", f"{stream_name}-theta-l2", group=1, motion="gated").compile(0.01)
+    (planner,) = [b for b in sync.blocks.values() if isinstance(b, RecedingPlanMotion)]
+    (gate,) = [b for b in sync.blocks.values() if isinstance(b, NoiseGate)]
+    assert planner.worker == "thread" and planner.end is None
+    report = run_realtime(sync, 3.0, record=True)
+    planner.close()
+    assert report.ticks == report.samples_out == 300 and planner.late == 0
+    # decided after its first second (the stream's timing jitter may well look like noise to it)
+    assert gate.world in ("model", "noisy") and np.isfinite(gate.sigma_hat) and planner.plans
+    # the same samples offline, the planner deciding inline behind its own gate: the same θ_L2 to the bit
+    offline_planner = RecedingPlanMotion(group.n, group.assisted, adjacency=group.graph, end=None)
+    offline_gated = GatedMotion(offline_planner)
+    offline = _offline(
+        ("theta", "theta_l2"),
+        L2Sync(offline_gated, group.assisted, _live_blender()),
+        report.trace["sample"],
+        "rad",
+        wrapped=True,
+    )
+    np.testing.assert_allclose(offline, report.trace["theta_l2"], rtol=0, atol=1e-12)
+    assert offline_gated.world == gate.world and offline_gated.sigma_hat == gate.sigma_hat, gate.sigma_hat
+    assert [p[0] for p in offline_planner.plans] == [p[0] for p in planner.plans]
