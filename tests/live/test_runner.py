@@ -217,6 +217,7 @@ def test_replan_decides_on_its_thread_live_and_plays_what_it_would_offline(lsl, 
     assert [p[0] for p in offline_block.plans] == [p[0] for p in block.plans]
 
 
+@pytest.mark.realtime
 def test_gated_runs_the_threaded_planner_behind_the_gate_live_and_plays_what_it_would_offline(
     lsl, streamer, stream_name
 ):
