@@ -3,6 +3,10 @@
 Under ``pytest -n`` every other test holds a shared lock while it runs and a ``realtime`` test takes it
 exclusively: the other workers finish the test they are in and wait. A turnstile taken before the shared lock
 keeps a waiting ``realtime`` test from being starved by workers that start new tests.
+
+Whether a threaded decision finishes within its period still depends on the machine, so a live planner is
+judged against the offline run that replays its recorded timeline (fixture ``replayed_planner``), not against
+a run that assumes no decision was late.
 """
 
 import fcntl
@@ -38,3 +42,55 @@ def _machine_share(request: pytest.FixtureRequest) -> Iterator[None]:
             yield
         finally:
             fcntl.flock(machine, fcntl.LOCK_UN)
+
+
+class _ReplayedFuture:
+    """A decision computed when it was started, taken when the live run took it."""
+
+    def __init__(self, block, result, taken: int) -> None:
+        self.block, self._result, self.taken = block, result, taken
+
+    def done(self) -> bool:
+        return 0 <= self.taken <= self.block.now
+
+    def result(self, timeout: float | None = None):
+        return self._result
+
+
+class _ReplayExecutor:
+    """Stands in for the planner's worker thread: runs a decision at once, hands it over at its recorded tick."""
+
+    def __init__(self, block) -> None:
+        self.block = block
+
+    def submit(self, decide, *task):
+        started, taken = self.block.recorded[len(self.block.timeline)]
+        assert started == self.block.now, f"the replay started a decision at tick {self.block.now}, live at {started}"
+        return _ReplayedFuture(self.block, decide(*task), taken)
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        pass
+
+
+@pytest.fixture
+def replayed_planner():
+    """A factory of :class:`~cogblocks.sync.RecedingPlanMotion` that decides offline as a threaded one did live.
+
+    ``replayed_planner(timeline, *args, **options)``: ``timeline`` is the live block's ``timeline``; every decision
+    starts at the tick it started live, and its plan is taken at the tick the live block took it (never, if it
+    never did), so late decisions are late again and the plans are the live ones whatever the machine's speed.
+    """
+    from cogblocks.sync import RecedingPlanMotion
+
+    class ReplayedPlanMotion(RecedingPlanMotion):
+        def __init__(self, timeline, *args, **options) -> None:
+            super().__init__(*args, worker="thread", **options)
+            self.recorded, self.now = list(timeline), -1
+
+        def update(self, k: int) -> None:
+            self.now = k
+            if self._executor is None:
+                self._executor = _ReplayExecutor(self)
+            super().update(k)
+
+    return ReplayedPlanMotion

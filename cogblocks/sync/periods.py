@@ -16,7 +16,7 @@ import numpy as np
 from cogblocks.sim.params import finite_number, positive_int
 from cogblocks.sim.timing import BASE_STEP
 
-__all__ = ["block_step", "decision_period", "period_ticks"]
+__all__ = ["block_step", "decision_period", "period_ticks", "seconds_ticks"]
 
 
 def block_step(block: Any) -> float:
@@ -65,3 +65,18 @@ def period_ticks(block: Any, seconds: float, ticks: int | None) -> int:
             f"got {seconds!r}"
         )
     return count
+
+
+def seconds_ticks(block: Any, name: str, value: Any, step: float = BASE_STEP) -> int:
+    """``block``'s parameter ``name`` (seconds) as a whole, positive number of ticks of ``step``.
+
+    Raises
+    ------
+    ValueError
+        When ``value`` is not a finite number of seconds that is a positive multiple of ``step``.
+    """
+    seconds = finite_number(block, name, value, low=0.0, low_open=True)
+    ticks = round(seconds / step)
+    if ticks < 1 or abs(seconds - ticks * step) > 1e-9:
+        raise ValueError(f"{type(block).__name__}: {name} must be a positive multiple of {step:g} s, got {value!r}")
+    return ticks

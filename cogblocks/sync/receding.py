@@ -39,6 +39,7 @@ from cogblocks.sync.blending import BlenderParams, alteration
 from cogblocks.sync.identification import usable_phases
 from cogblocks.sync.model import DT
 from cogblocks.sync.motion import _IdentifyingMotion
+from cogblocks.sync.periods import seconds_ticks
 from cogblocks.sync.rollouts import stepped
 from cogblocks.sync.sweeps import checked_sweeps
 from cogblocks.sync.whole_run import (
@@ -123,6 +124,9 @@ class RecedingPlanMotion(_IdentifyingMotion):
         not block state).
     late : int
         Decisions not finished when their period ended (a record, not block state).
+    timeline : list of (int, int)
+        The tick each decision was started at and the tick its result was taken at (-1: not yet); inline, the same
+        tick. Replaying a thread's timeline offline gives its plans whatever the machine's speed (a record).
 
     Notes
     -----
@@ -155,7 +159,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
     ) -> None:
         super().__init__(n, assisted, period, adjacency, blender)
         self.end = None if end is None else finite_number(self, "end", end, low=0.0, low_open=True)
-        self.decide_ticks = None if decide_every is None else _ticks(self, "decide_every", decide_every)
+        self.decide_ticks = None if decide_every is None else seconds_ticks(self, "decide_every", decide_every)
         if horizon is None and self.end is None:
             raise ValueError("RecedingPlanMotion: horizon=None plans to the trial's end, which needs end")
         if decide_every is None and (horizon is not None or worker != "inline"):
@@ -163,12 +167,12 @@ class RecedingPlanMotion(_IdentifyingMotion):
                 "RecedingPlanMotion: decide_every=None plans the whole trial at once, in the tick it decides: "
                 f"it needs horizon=None and worker='inline', got horizon={horizon!r}, worker={worker!r}"
             )
-        self.horizon_ticks = None if horizon is None else _ticks(self, "horizon", horizon)
+        self.horizon_ticks = None if horizon is None else seconds_ticks(self, "horizon", horizon)
         if self.horizon_ticks is not None and self.horizon_ticks < self.decide_ticks:
             raise ValueError(
                 f"RecedingPlanMotion: horizon ({horizon} s) must be at least decide_every ({decide_every} s)"
             )
-        self.compare_ticks = None if compare is None else _ticks(self, "compare", compare)
+        self.compare_ticks = None if compare is None else seconds_ticks(self, "compare", compare)
         self.extend = one_of(self, "extend", extend, ("rule", "nothing"))
         self.sweeps = checked_sweeps(self, sweeps)
         self.worker = one_of(self, "worker", worker, ("inline", "thread"))
@@ -196,6 +200,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
         self.decide_ms: list[float] = []
         self.plans: list[tuple[int, np.ndarray, np.ndarray]] = []
         self.late = 0
+        self.timeline: list[tuple[int, int]] = []
 
     @property
     def decision_period(self) -> float:
@@ -205,7 +210,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
     def reset(self) -> None:
         super().reset()
         self._future = None
-        self.decide_ms, self.plans, self.late = [], [], 0
+        self.decide_ms, self.plans, self.late, self.timeline = [], [], 0, []
 
     def setup(self) -> None:
         super().setup()
@@ -274,11 +279,13 @@ class RecedingPlanMotion(_IdentifyingMotion):
         task = (omega.copy(), float(gain), state, k, start, stop, self._committed())
         if self.worker == "inline":
             self._hold(self._decide(*task))
+            self.timeline.append((k, k))
             self._take_decision(k)  # a plan that starts at the next tick is in force from it
             return
         if self._executor is None:
             self._executor = ThreadPoolExecutor(1, thread_name_prefix="cogblocks-replan")
         self._future = self._executor.submit(self._decide, *task)
+        self.timeline.append((k, -1))
 
     def _committed(self) -> tuple[np.ndarray, np.ndarray, int] | None:
         """The plan in force (alterations, fractions, first tick), copied for a decision, or ``None``."""
@@ -294,6 +301,7 @@ class RecedingPlanMotion(_IdentifyingMotion):
         if self._future is not None:
             if self._future.done():
                 self._hold(self._future.result())
+                self.timeline[-1] = (self.timeline[-1][0], k)
                 self._future = None
             elif k + 1 == self.next_decision:
                 self.late += 1
@@ -390,11 +398,3 @@ class RecedingPlanMotion(_IdentifyingMotion):
             model, self.adjacency, self.blender, end, tuple(v[best : best + 1] for v in rules), rest, True
         )
         return np.r_[old, s[:, 0]]
-
-
-def _ticks(block: RecedingPlanMotion, name: str, value: Any) -> int:
-    seconds = finite_number(block, name, value, low=0.0, low_open=True)
-    ticks = round(seconds / DT)
-    if ticks < 1 or abs(seconds - ticks * DT) > 1e-9:
-        raise ValueError(f"RecedingPlanMotion: {name} must be a positive multiple of {DT} s, got {value!r}")
-    return ticks

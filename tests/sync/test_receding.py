@@ -105,19 +105,32 @@ def test_plans_continue_bit_for_bit_from_a_snapshot_taken_between_a_decision_and
 
 
 @pytest.mark.realtime
-def test_on_a_thread_in_real_time_the_plans_are_those_made_inline():
+def test_on_a_thread_in_real_time_the_plans_are_those_of_its_timeline_replayed(replayed_planner):
     from cogblocks.live import run_realtime
 
-    inline = _block()
-    expected = _run(inline)["r"]
     threaded = _block(worker="thread")
     d = pop_sync(GROUP, motion=threaded, blender="deliverable")
     d.expose_output("r", "order.r")
     report = run_realtime(d.compile(0.01), N_TICKS / 100.0, record=True)
     threaded.close()
-    assert threaded.late == 0 and len(threaded.decide_ms) == 5
-    assert [start for start, _, _ in threaded.plans] == [start for start, _, _ in inline.plans]
+    assert threaded.timeline and len(threaded.decide_ms) >= len(threaded.plans)
+    replayed = replayed_planner(
+        threaded.timeline, GROUP.n, GROUP.assisted, adjacency=GROUP.graph, end=GROUP.duration, **OPTIONS
+    )
+    expected = _run(replayed)["r"]
+    assert [start for start, _, _ in threaded.plans] == [start for start, _, _ in replayed.plans]
+    assert replayed.late == threaded.late and replayed.timeline == threaded.timeline
     np.testing.assert_allclose(report.trace["r"], expected, rtol=0, atol=1e-12)
+
+
+def test_a_timeline_without_late_decisions_replays_as_the_inline_run(replayed_planner):
+    inline = _block()
+    expected = _run(inline)["r"]
+    replayed = replayed_planner(
+        inline.timeline, GROUP.n, GROUP.assisted, adjacency=GROUP.graph, end=GROUP.duration, **OPTIONS
+    )
+    np.testing.assert_array_equal(_run(replayed)["r"], expected)
+    assert replayed.late == 0 and [p[0] for p in replayed.plans] == [p[0] for p in inline.plans]
 
 
 class _HeldDecision(RecedingPlanMotion):
@@ -132,7 +145,7 @@ class _HeldDecision(RecedingPlanMotion):
         return super()._decide(*task)
 
 
-def test_a_late_decision_is_counted_and_dropped_while_the_plan_in_force_goes_on():
+def test_a_late_decision_is_counted_and_dropped_while_the_plan_in_force_goes_on(replayed_planner):
     release = threading.Event()
     block = _HeldDecision(release, worker="thread", **OPTIONS)
     sim = Simulator(pop_sync(GROUP, motion=block, blender="deliverable"), probes=PROBES)
@@ -141,7 +154,7 @@ def test_a_late_decision_is_counted_and_dropped_while_the_plan_in_force_goes_on(
     np.testing.assert_array_equal(_wrap(first["l2"] - first["l0"]), 0.0)  # no plan: nothing altered
     release.set()
     block._future.result(timeout=30.0)
-    sim.run(n_steps=1)
+    middle = sim.run(n_steps=1)
     # its plan's start, tick 200, has passed: dropped
     assert block.pending_start == -1 and block.pending_a is None and block.plans == []
     assert block._future is not None and block.next_decision == 450  # decided again at tick 350, the worker free
@@ -152,6 +165,14 @@ def test_a_late_decision_is_counted_and_dropped_while_the_plan_in_force_goes_on(
     np.testing.assert_allclose(_wrap(second["l2"] - second["l0"])[99:199], a[:100], rtol=0, atol=1e-9)
     block.close()
     assert block._executor is None and block._future is None
+    # its timeline replayed offline: the same late decisions dropped, the same plans, the same avatar
+    replayed = replayed_planner(
+        block.timeline, GROUP.n, GROUP.assisted, adjacency=GROUP.graph, end=GROUP.duration, **OPTIONS
+    )
+    again = _run(replayed)
+    live = np.concatenate([part["l2"] for part in (first, middle, second)])
+    np.testing.assert_allclose(again["l2"], live, rtol=0, atol=1e-12)
+    assert replayed.late == block.late >= 1 and [p[0] for p in replayed.plans] == [p[0] for p in block.plans]
 
 
 def test_a_bad_tick_identifies_nothing_and_theta_ref_holds():
