@@ -46,9 +46,11 @@ import torch
 from cogblocks.amplification.emission import EMISSIONS
 from cogblocks.amplification.encoder import FEAR, NO_FEAR
 from cogblocks.amplification.linearised import GRADIENTS
+from cogblocks.amplification.smoothing import STEP_LIMIT
 from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 from cogblocks.diagrams.amplification import SMOOTHING_HZ, run_amplification
+from cogblocks.experiments.amplification_cli import step_limit_option
 from cogblocks.diagrams.amplification_setup import (
     OPTIMISED,
     AmplificationSetup,
@@ -99,6 +101,7 @@ def run_fresh(
     front_end: str = "recorded",
     noise_mm: float = 0.0,
     smoothing_hz: float | str | None = SMOOTHING_HZ,
+    step_limit: float | None = STEP_LIMIT,
 ) -> dict[str, Any]:
     """Both directions on the fresh movements, keyed as ``cogblocks run amplification --json``.
 
@@ -109,7 +112,8 @@ def run_fresh(
     part), to try a setting on a validation library; by default the chain is the shipped one. ``front_end`` and
     ``noise_mm`` are :func:`~cogblocks.diagrams.amplification.pop_amplification`'s: ``"kalman"`` replays the tracked
     positions, with that much noise, through the Kalman estimator, as on a live motion-capture stream, its velocity
-    smoothed at ``smoothing_hz`` (None: not smoothed) and gated at rest.
+    smoothed at ``smoothing_hz`` (None: not smoothed) and gated at rest. ``step_limit`` is
+    :func:`~cogblocks.diagrams.amplification.pop_amplification`'s (the shipped one by default; None: the blending rules' own steps).
     """
     ensembles = blender_ensembles(kinematic_weights) if kinematic_weights else None
     settings = {**OPTIMISED, **(optimised or {})}
@@ -126,6 +130,7 @@ def run_fresh(
             variants, limit=limit, e_des=e_des, setup=setup, judges=amplification_judges(),
             blender_networks=blender_networks(setup.encoder, **(members or {}), ensembles=ensembles),
             optimised=settings, front_end=front_end, noise_mm=noise_mm, smoothing_hz=smoothing_hz,
+            step_limit=step_limit,
         )  # fmt: skip
         rows.update(result) if e_des == 1 else rows.update(e_des_0=result)
     return rows
@@ -195,6 +200,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--smoothing-hz", type=_cutoff, default=SMOOTHING_HZ, metavar="HZ|auto|none",
         help=f"with --front-end kalman: the velocity estimate's low-pass cut-off (default {SMOOTHING_HZ}; none: off)",
     )  # fmt: skip
+    parser.add_argument(
+        "--step-limit", type=step_limit_option, default=STEP_LIMIT, metavar="FACTOR|none",
+        help=f"the altered velocity's per-tick step at most FACTOR x the human's largest so far (default {STEP_LIMIT:g})",
+    )  # fmt: skip
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
@@ -209,7 +218,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     members = {name: count for name, count in given.items() if count is not None}
     rows = run_fresh(args.library_seed, args.variants, limit=args.limit, share=args.share, directions=args.e_des,
                      members=members, kinematic_weights=args.kinematic_weights, optimised=optimised,
-                     front_end=args.front_end, noise_mm=args.noise_mm, smoothing_hz=args.smoothing_hz)  # fmt: skip
+                     front_end=args.front_end, noise_mm=args.noise_mm, smoothing_hz=args.smoothing_hz,
+                     step_limit=args.step_limit)  # fmt: skip
     if args.json:
         print(json.dumps(rows))
         return 0

@@ -8,7 +8,12 @@ from cogblocks.blocks.specs import VELOCITY
 from cogblocks.sim import Block
 from cogblocks.sim.params import finite_number
 
-__all__ = ["VelocityStepLimiter"]
+__all__ = ["STEP_LIMIT", "VelocityStepLimiter"]
+
+#: The ready diagrams' step limit, a multiple of the human's largest per-tick step so far. At 1 the altered
+#: movement never steps harder than the human's own; below 1 it falls behind the human's fastest changes and
+#: misses its end point (docs/explanation/avatar-naturalness.md, the trade-off table of the inner split).
+STEP_LIMIT = 1.0
 
 
 class VelocityStepLimiter(Block):

@@ -31,6 +31,7 @@ from cogblocks.blocks import Playback, Probe
 from cogblocks.data.reach import ReachLibrary
 from cogblocks.diagrams.amplification_setup import (
     OPTIMISED,
+    STEP_LIMIT,
     AmplificationSetup,
     amplification_judges,
     amplification_setup,
@@ -47,6 +48,7 @@ __all__ = [
     "AmplificationSetup",
     "PAPER",
     "SMOOTHING_HZ",
+    "STEP_LIMIT",
     "amplification_judges",
     "amplification_setup",
     "plot_amplification",
@@ -77,7 +79,7 @@ def pop_amplification(
     noise_mm: float = 0.0,
     seed: int = 0,
     smoothing_hz: float | str | None = SMOOTHING_HZ,
-    step_limit: float | None = None,
+    step_limit: float | None = STEP_LIMIT,
 ) -> Diagram:
     """A ready diagram replaying one human movement through the L2 architecture.
 
@@ -117,7 +119,9 @@ def pop_amplification(
         (:mod:`cogblocks.diagrams.tracking`); ``None``: the estimate as it is.
     step_limit : float, optional
         Limit the altered velocity's per-tick step to this multiple of the human's largest so far
-        (:class:`~cogblocks.amplification.smoothing.VelocityStepLimiter`, block ``l2.limiter``); None: no limit.
+        (:class:`~cogblocks.amplification.smoothing.VelocityStepLimiter`, block ``l2.limiter``). The default,
+        :data:`~cogblocks.diagrams.amplification_setup.STEP_LIMIT` (1), keeps every step within the human's own;
+        None: the blending rule's output as it is (the deliverable's architecture).
     """
     one_of("pop_amplification", "front_end", front_end, ("recorded", "kalman"))
     noise_mm = finite_number("pop_amplification", "noise_mm", noise_mm, low=0.0)
@@ -198,7 +202,7 @@ def run_amplification(
     front_end: str = "recorded",
     noise_mm: float = 0.0,
     smoothing_hz: float | str | None = SMOOTHING_HZ,
-    step_limit: float | None = None,
+    step_limit: float | None = STEP_LIMIT,
     setup: AmplificationSetup | None = None,
     judges: Judges | None = None,
     blender_networks: Sequence[EncoderNet] | None = None,

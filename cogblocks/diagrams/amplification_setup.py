@@ -22,6 +22,7 @@ from cogblocks.amplification.judges import (
     KinematicJudge,
     load_ensemble,
 )
+from cogblocks.amplification.smoothing import STEP_LIMIT
 from cogblocks.amplification.solution import library_fingerprint, same_library
 from cogblocks.amplification.subspace import MovementSubspace, movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
@@ -31,6 +32,7 @@ __all__ = [
     "COMPONENTS",
     "CONSTRAINED_MEMBERS",
     "OPTIMISED",
+    "STEP_LIMIT",
     "AmplificationSetup",
     "amplification_judges",
     "amplification_setup",

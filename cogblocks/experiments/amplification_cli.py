@@ -9,9 +9,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from cogblocks.amplification.smoothing import STEP_LIMIT
 from cogblocks.cli_options import OUTPUT_FOLDER, SEED, STEP, plot_output, print_result
 
-__all__ = ["add_amplification_parser"]
+__all__ = ["add_amplification_parser", "step_limit_option"]
 
 #: Options that only the whole chain on a library file reads, by their attribute.
 _LIBRARY_ONLY = {
@@ -22,17 +23,18 @@ _LIBRARY_ONLY = {
     "--dt": "dt",
     "--unit": "unit",
 }
-#: Options that only the bundled library's run reads (the whole chain on a file has no step limit).
-_BUNDLED_ONLY = {"--step-limit": "step_limit"}
 _LIBRARY_SUFFIXES = (".mat", ".npz", ".csv")
 
 
-def _step_limit(text: str) -> float:
+def step_limit_option(text: str) -> float | None:
+    """``--step-limit``: a multiple of the human's largest step (> 0), or ``none`` for the rule's own steps."""
+    if text.strip().lower() == "none":
+        return None
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected a multiple of the human's largest step (> 0), got {text!r}"
+            f"expected a multiple of the human's largest step (> 0) or 'none', got {text!r}"
         ) from None
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a multiple of the human's largest step (> 0), got {text}")
@@ -66,10 +68,11 @@ def add_amplification_parser(targets: Any, common: Callable[[argparse.ArgumentPa
     )
     amplification.add_argument(
         "--step-limit",
-        type=_step_limit,
-        metavar="FACTOR",
+        type=step_limit_option,
+        default=STEP_LIMIT,
+        metavar="FACTOR|none",
         help="limit the altered velocity's per-tick step to FACTOR × the human's largest so far (VelocityStepLimiter; "
-        "1 keeps it within the human's own); default: no limit",
+        f"default {STEP_LIMIT:g}: within the human's own); none: the blending rule's own steps, as in the deliverable",
     )
     amplification.add_argument(
         "--library", type=_library_file, metavar="FILE", help="run the whole chain on FILE (.mat, .npz, .csv)"
@@ -97,9 +100,6 @@ def _percent(x: float | None) -> str:
 
 def _run_amplification(args: argparse.Namespace) -> int:
     if args.library is not None:
-        given = [option for option, value in _BUNDLED_ONLY.items() if getattr(args, value) is not None]
-        if given:
-            raise ValueError(f"{', '.join(given)} applies to the bundled library only, not to --library FILE")
         return _run_amplification_pipeline(args)
     given = [option for option, value in _LIBRARY_ONLY.items() if getattr(args, value) not in (None, False)]
     if given:
@@ -163,6 +163,7 @@ def _run_amplification_pipeline(args: argparse.Namespace) -> int:
         label_field=args.label_field,
         dt=args.dt,
         unit=args.unit,
+        step_limit=args.step_limit,
         log=lambda line: print(line, file=sys.stderr, flush=True),
     )
     print_result(report, args.json, _render_pipeline)

@@ -28,6 +28,7 @@ import torch
 
 from cogblocks.amplification import solution_table
 from cogblocks.amplification.judges import EncoderEnsemble, Judges, KinematicJudge, ensemble_checkpoint
+from cogblocks.amplification.smoothing import STEP_LIMIT
 from cogblocks.amplification.solution import library_fingerprint
 from cogblocks.data.features import classifier_inputs
 from cogblocks.data.loaders import load_csv, load_npz, load_velocity_data_mat
@@ -111,6 +112,7 @@ def run_pipeline(
     limit: int | None = None,
     encoder_epochs: int | None = None,
     corrector_episodes: int | None = None,
+    step_limit: float | None = STEP_LIMIT,
     log: Callable[[str], None] | None = print,
 ) -> dict[str, Any]:
     """Train and validate the whole chain on ``library``; write its products to ``out_dir``.
@@ -135,6 +137,9 @@ def run_pipeline(
         Validate only the first ``limit`` held-out movements per direction.
     encoder_epochs, corrector_episodes : int, optional
         Override the training lengths (tests train tiny models).
+    step_limit : float, optional
+        The validation runs' step limit (:func:`~cogblocks.diagrams.amplification.run_amplification`'s; the
+        ready diagrams' by default, None: none).
     log : callable, optional
         Receives the progress lines; ``None`` is silent.
 
@@ -239,6 +244,7 @@ def run_pipeline(
             judges=judges,
             blender_networks=constrained,
             corrector=corrector,
+            step_limit=step_limit,
         )
     report["seconds"] = time.perf_counter() - started
     (out / "report.json").write_text(json.dumps(report, indent=2))

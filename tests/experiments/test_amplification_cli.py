@@ -2,6 +2,7 @@
 
 import pytest
 
+from cogblocks.amplification.smoothing import STEP_LIMIT
 from cogblocks.cli import main
 from cogblocks.training.pipeline import load_library
 
@@ -38,7 +39,20 @@ def test_the_step_limit_reaches_both_directions_of_the_bundled_run(capsys, monke
     assert calls == [{"step_limit": 1.5}, {"e_des": 0, "step_limit": 1.5}]
     capsys.readouterr()
     assert main(["run", "amplification", "--variant", "blend", "--json"]) == 0
-    assert calls[-1] == {"e_des": 0, "step_limit": None}
+    assert calls[-1] == {"e_des": 0, "step_limit": STEP_LIMIT}  # the ready diagrams' own
+    capsys.readouterr()
+    assert main(["run", "amplification", "--variant", "blend", "--step-limit", "NONE", "--json"]) == 0
+    assert calls[-1] == {"e_des": 0, "step_limit": None}  # the deliverable's rule, unlimited
+
+
+def test_the_cli_default_step_limit_is_the_ready_diagrams_default():
+    import inspect
+
+    from cogblocks.diagrams.amplification import pop_amplification, run_amplification
+    from cogblocks.training.pipeline import run_pipeline
+
+    for function in (pop_amplification, run_amplification, run_pipeline):
+        assert inspect.signature(function).parameters["step_limit"].default == STEP_LIMIT == 1.0
 
 
 @pytest.mark.parametrize("value", ["0", "-1", "nan", "fast"])
@@ -47,8 +61,14 @@ def test_a_step_limit_that_is_not_a_positive_factor_is_refused(capsys, value):
     assert "argument --step-limit" in capsys.readouterr().err
 
 
-def test_the_step_limit_is_refused_with_a_library(capsys, tmp_path):
+def test_the_step_limit_reaches_the_library_chain(capsys, monkeypatch, tmp_path):
+    import cogblocks.training.pipeline as pipeline
+
+    calls = []
+    monkeypatch.setattr(pipeline, "run_pipeline", lambda library, out, **options: calls.append(options) or {})
     library = tmp_path / "lib.npz"
     library.write_bytes(b"")
-    assert main(["run", "amplification", "--library", str(library), "--step-limit", "1", "--out", str(tmp_path)]) == 2
-    assert "--step-limit applies to the bundled library only" in capsys.readouterr().err
+    for argv, expected in (([], STEP_LIMIT), (["--step-limit", "0.8"], 0.8), (["--step-limit", "none"], None)):
+        main(["run", "amplification", "--library", str(library), "--out", str(tmp_path / "out"), "--json", *argv]) == 0
+        assert calls[-1]["step_limit"] == expected
+    capsys.readouterr()
