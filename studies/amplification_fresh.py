@@ -50,7 +50,6 @@ from cogblocks.amplification.smoothing import STEP_LIMIT
 from cogblocks.amplification.subspace import movement_subspace
 from cogblocks.data.reach import ReachLibrary, generate_reach_library
 from cogblocks.diagrams.amplification import SMOOTHING_HZ, run_amplification
-from cogblocks.experiments.amplification_cli import step_limit_option
 from cogblocks.diagrams.amplification_setup import (
     OPTIMISED,
     AmplificationSetup,
@@ -59,6 +58,7 @@ from cogblocks.diagrams.amplification_setup import (
     blender_ensembles,
     blender_networks,
 )
+from cogblocks.experiments.amplification_cli import step_limit_option
 
 __all__ = ["FRESH_SEED", "fresh_setup", "main", "real_shares", "run_fresh"]
 
@@ -113,7 +113,8 @@ def run_fresh(
     ``noise_mm`` are :func:`~cogblocks.diagrams.amplification.pop_amplification`'s: ``"kalman"`` replays the tracked
     positions, with that much noise, through the Kalman estimator, as on a live motion-capture stream, its velocity
     smoothed at ``smoothing_hz`` (None: not smoothed) and gated at rest. ``step_limit`` is
-    :func:`~cogblocks.diagrams.amplification.pop_amplification`'s (the shipped one by default; None: the blending rules' own steps).
+    :func:`~cogblocks.diagrams.amplification.pop_amplification`'s (the shipped one by default; None: the
+    blending rules' own steps).
     """
     ensembles = blender_ensembles(kinematic_weights) if kinematic_weights else None
     settings = {**OPTIMISED, **(optimised or {})}
@@ -202,7 +203,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )  # fmt: skip
     parser.add_argument(
         "--step-limit", type=step_limit_option, default=STEP_LIMIT, metavar="FACTOR|none",
-        help=f"the altered velocity's per-tick step at most FACTOR x the human's largest so far (default {STEP_LIMIT:g})",
+        help=f"the altered velocity's per-tick step at most FACTOR x the human's largest step (default {STEP_LIMIT:g})",
     )  # fmt: skip
     parser.add_argument("--real", action="store_true", help="the judges on the library's real movements (JSON)")
     args = parser.parse_args(argv)

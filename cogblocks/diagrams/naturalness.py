@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from cogblocks.sim.timing import BASE_STEP
+
 __all__ = [
     "JUMP_RAD",
     "alteration_steps",
@@ -56,12 +58,12 @@ def alteration_steps(theta_l2: Any, theta_l0: Any) -> np.ndarray:
     return np.abs(_wrap(np.diff(_wrap(theta_l2 - theta_l0))))
 
 
-def phase_speed(theta: Any, dt: float = 0.01) -> np.ndarray:
+def phase_speed(theta: Any, dt: float = BASE_STEP) -> np.ndarray:
     """Phase speed per tick, rad/s: the unwrapped phase's difference over ``dt`` (one value fewer)."""
     return np.abs(_wrap(np.diff(_phases(theta, "theta")))) / dt
 
 
-def phase_naturalness(theta_l2: Any, theta_l0: Any, dt: float = 0.01, jump: float = JUMP_RAD) -> dict[str, float]:
+def phase_naturalness(theta_l2: Any, theta_l0: Any, dt: float = BASE_STEP, jump: float = JUMP_RAD) -> dict[str, float]:
     """The avatar's phase against the person's.
 
     Parameters
@@ -113,7 +115,7 @@ def _ratio(a: float, b: float) -> float:
     return a / b if b > 0 else float("nan")
 
 
-def position_naturalness(p_avatar: Any, p_person: Any, dt: float = 0.01) -> dict[str, float]:
+def position_naturalness(p_avatar: Any, p_person: Any, dt: float = BASE_STEP) -> dict[str, float]:
     """The avatar's position against the person's (1D or (ticks, axes) traces, any unit of length).
 
     Velocity, acceleration and jerk are the first, second and third differences over ``dt``.
@@ -139,7 +141,7 @@ def _velocity_figures(v: np.ndarray, dt: float) -> tuple[float, float, float]:
     return float(_norm(step).max()), float(_norm(step).max() / dt), _rms(jerk)
 
 
-def movement_naturalness(altered: Sequence[Any], human: Sequence[Any], dt: float = 0.01) -> dict[str, Any]:
+def movement_naturalness(altered: Sequence[Any], human: Sequence[Any], dt: float = BASE_STEP) -> dict[str, Any]:
     """The altered movements' velocity against the human movements' they were made from (PoP of Amplification).
 
     Parameters
@@ -190,7 +192,7 @@ def sync_naturalness(trace: Any, assisted: int | None = None, amplitude: float =
     :func:`position_naturalness` of the avatar's arm ``amplitude · cos θ_L2`` against the assisted person's
     ``amplitude · cos θ`` (noise-free: sensor noise is not the person's movement).
     """
-    dt = float(trace.t[1] - trace.t[0]) if len(trace.t) > 1 else 0.01
+    dt = float(trace.t[1] - trace.t[0]) if len(trace.t) > 1 else BASE_STEP
     figures = phase_naturalness(trace["theta_l2"], trace["theta_l0"], dt)
     if assisted is not None:
         person = amplitude * np.cos(np.asarray(trace["theta"])[:, assisted])

@@ -22,6 +22,7 @@ from cogblocks.data.markers import MarkerRecording
 from cogblocks.data.recordings import load_recording
 from cogblocks.diagrams.phase3d import chain_summary, run_phase_estimator
 from cogblocks.phase import mean_cycle, offline_phase_pca_hilbert
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["RecordedMotion", "filled", "phase3d_recording", "plot_phase3d_recording", "recorded_motion"]
 
@@ -64,7 +65,9 @@ def filled(position: np.ndarray) -> np.ndarray:
     return out
 
 
-def recorded_motion(recording: str | os.PathLike | MarkerRecording, marker: str, *, dt: float = 0.01) -> RecordedMotion:
+def recorded_motion(
+    recording: str | os.PathLike | MarkerRecording, marker: str, *, dt: float = BASE_STEP
+) -> RecordedMotion:
     """One marker of a C3D/XDF file (or of a loaded :class:`MarkerRecording`) on a grid of step ``dt``."""
     if isinstance(recording, MarkerRecording):
         rec = recording.select([marker]).resampled(dt)
@@ -82,7 +85,7 @@ def phase3d_recording(
     recording: str | os.PathLike | MarkerRecording,
     marker: str,
     *,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
     motion_computer: str = "mean",
 ) -> dict[str, Any]:
     """The online 3D phase of a recorded marker against its offline PCA-Hilbert phase, and the phase chain on it.
@@ -117,7 +120,12 @@ def phase3d_recording(
 
 
 def plot_phase3d_recording(
-    recording: str | os.PathLike | MarkerRecording, marker: str, path: str, *, dt: float = 0.01, shown: float = 12.0
+    recording: str | os.PathLike | MarkerRecording,
+    marker: str,
+    path: str,
+    *,
+    dt: float = BASE_STEP,
+    shown: float = 12.0,
 ) -> None:
     """Draw a recorded marker's online and offline phases (first ``shown`` s) and their difference to ``path``."""
     import matplotlib

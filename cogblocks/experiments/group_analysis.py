@@ -45,6 +45,7 @@ from cogblocks.data.recordings import load_recording
 from cogblocks.diagrams.phase3d import run_phase_estimator
 from cogblocks.diagrams.recording import RecordedMotion, filled
 from cogblocks.phase import mean_cycle, offline_phase_pca_hilbert
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["SURROGATES", "analyse_group", "order_parameter", "surrogate_test"]
 
@@ -120,7 +121,7 @@ def analyse_group(
     recording: str | os.PathLike | MarkerRecording,
     markers: Sequence[str],
     *,
-    dt: float = 0.01,
+    dt: float = BASE_STEP,
     online: bool = True,
     n_surrogates: int = 199,
     surrogate: str = "shift",

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from cogblocks.cli_options import COUNT, PLOT_PATH, SEED, STEP
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["add_analyse_parser", "add_recording_options", "plot_group"]
 
@@ -66,7 +67,9 @@ def add_analyse_parser(commands: Any) -> None:
     group.add_argument("--markers", required=True, type=_names, metavar="A,B,...", help="one marker per participant")
     group.add_argument("--surrogates", type=COUNT, default=199, metavar="N", help="time-shift surrogates (def. 199)")
     group.add_argument("--seed", type=SEED, default=0, help="seed of the surrogates (default 0)")
-    group.add_argument("--dt", type=STEP, default=0.01, metavar="SECONDS", help="grid step (default 0.01)")
+    group.add_argument(
+        "--dt", type=STEP, default=BASE_STEP, metavar="SECONDS", help=f"grid step (default {BASE_STEP:g})"
+    )
     group.add_argument("--unit", metavar="UNIT", help="length unit (m, cm, mm) of XDF channels that declare none")
     group.add_argument("--offline-only", action="store_true", help="skip the online estimator (faster)")
     group.add_argument("--json", action="store_true", help="print one JSON object instead of text")

@@ -29,6 +29,7 @@ import numpy as np
 from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
 from cogblocks.diagrams.naturalness import sync_naturalness
 from cogblocks.diagrams.sync import DEFAULT_MOTION, MOTIONS, pop_sync, simulate
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["blender_from_spec", "compare_blenders", "evaluate_group", "main", "summarise"]
 
@@ -60,7 +61,7 @@ def blender_from_spec(spec: str) -> tuple[str, Any]:
 
 def evaluate_group(group: SyncGroup, policies: Sequence[str], blenders: Sequence[str]) -> dict[str, Any]:
     """One group: r without L2, and per blender spec and policy r with L2, its change (%) and the naturalness."""
-    n_steps = round(group.duration / 0.01) + 1
+    n_steps = round(group.duration / BASE_STEP) + 1
     r_without = float(simulate(pop_sync(group, l2=False), n_steps, label=group.name)["r"].mean())
     rows = []
     for spec in blenders:

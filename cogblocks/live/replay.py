@@ -16,6 +16,7 @@ from cogblocks.live.runner import RealtimeReport, _trace
 from cogblocks.live.session import RUN_STREAM
 from cogblocks.live.timed import StreamHeader, TimedInlet
 from cogblocks.sim import Diagram
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["NotASession", "RecordedStream", "Session", "load_session", "replay_session"]
 
@@ -166,7 +167,7 @@ def load_session(path: str | os.PathLike) -> Session:
     if not run:
         raise NotASession(f"{path}: not a cogblocks session (no {RUN_STREAM!r} stream; record with --record)")
     meta = _cogblocks(run[0])
-    return Session(path, streams, float(meta.get("dt", "0.01")), json.loads(meta.get("options") or "{}"))
+    return Session(path, streams, float(meta.get("dt", BASE_STEP)), json.loads(meta.get("options") or "{}"))
 
 
 def replay_session(diagram: Diagram, session: Session, *, record: bool = True) -> RealtimeReport:

@@ -16,11 +16,11 @@ from typing import Any
 import numpy as np
 
 from cogblocks.sim.reading import open_npz
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["load_run", "load_xdf_streams"]
 
 _NOT_SIGNALS = {"t", "tick_ms", "start_ms", "summary"}
-_STEP = 0.01  # s, the diagrams' tick
 _MAX_POINTS = 200_000  # per signal, what the page still draws smoothly
 
 
@@ -54,7 +54,7 @@ def load_run(
                 raise ValueError(f"{path}: holds no trace (save it with --save from cogblocks live or replay)")
             t = run["t"]
             signals = {k: run[k] for k in run.files if k not in _NOT_SIGNALS and not k.startswith("raw/")}
-            dt = float(t[1] - t[0]) if len(t) > 1 else 0.01
+            dt = float(t[1] - t[0]) if len(t) > 1 else BASE_STEP
             late = (run["start_ms"] + run["tick_ms"] > 1e3 * dt) if "tick_ms" in run.files else np.zeros(len(t), bool)
         return t, signals, {k: "" for k in signals}, late[: len(t)]
     if suffix == ".xdf":
@@ -128,7 +128,7 @@ def load_xdf_streams(
         raise ValueError(f"{path}: no stream of numbers to show ({'; '.join(notes) or 'the file holds no streams'})")
     start = min(s[0] for s, _, _ in kept.values())
     stop = max(s[-1] for s, _, _ in kept.values())
-    step = max(_STEP, (stop - start) / _MAX_POINTS)
+    step = max(BASE_STEP, (stop - start) / _MAX_POINTS)
     grid = start + step * np.arange(int(np.floor((stop - start) / step)) + 1)
     signals = {
         key: np.column_stack([np.interp(grid, s, x[:, c], left=np.nan, right=np.nan) for c in range(x.shape[1])])

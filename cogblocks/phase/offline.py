@@ -11,11 +11,12 @@ import scipy.stats
 from cogblocks.blocks.angles import TWO_PI, wrap_2pi
 from cogblocks.phase.customizer import _as_curve
 from cogblocks.sim.params import finite_number
+from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["hilbert_phase", "mean_cycle", "offline_phase_pca_hilbert"]
 
 
-def hilbert_phase(p: np.ndarray, *, dt: float = 0.01, highpass: float | None = None) -> np.ndarray:
+def hilbert_phase(p: np.ndarray, *, dt: float = BASE_STEP, highpass: float | None = None) -> np.ndarray:
     """Offline phase of a 1D oscillation: the angle of the analytic signal of the centred position.
 
     Same convention as :class:`PhaseEstimator`: ``p = cos ωt`` gives ``θ = ωt`` (the analytic signal

@@ -13,6 +13,7 @@ from cogblocks.blocks.specs import PHASE
 from cogblocks.data.graphs import ring_adjacency
 from cogblocks.sim import Block
 from cogblocks.sim.params import finite_array, finite_number, positive_int, random_generator
+from cogblocks.sim.timing import BASE_STEP
 from cogblocks.sync.coupling import Coupling, checked_graph
 
 if TYPE_CHECKING:
@@ -264,7 +265,7 @@ class KuramotoGroup(Block):
         np.mod(phase, TWO_PI, out=phase)
         np.minimum(phase, _BELOW_TWO_PI, out=phase)  # np.mod gives 2π for tiny negative values
 
-    def noise_path(self, n_steps: int, dt: float = 0.01) -> np.ndarray:
+    def noise_path(self, n_steps: int, dt: float = BASE_STEP) -> np.ndarray:
         """The noise's phase increments of the first ``n_steps`` ticks from the block's initial noise state.
 
         Row k is what tick k adds to the phases beyond the noise-free step (``dt δ_k + σ √dt ξ_k``, rad),
@@ -273,7 +274,7 @@ class KuramotoGroup(Block):
         """
         return self._paths(n_steps, dt)[0]
 
-    def drift_path(self, n_steps: int, dt: float = 0.01) -> np.ndarray:
+    def drift_path(self, n_steps: int, dt: float = BASE_STEP) -> np.ndarray:
         """The frequency drift δ_k (rad/s) in force at each of the first ``n_steps`` ticks: the true ω_i(t) − ω_i."""
         return self._paths(n_steps, dt)[1]
 

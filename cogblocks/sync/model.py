@@ -11,13 +11,14 @@ import scipy.sparse as sp
 
 from cogblocks.blocks.angles import wrap_pi
 from cogblocks.data.groups import SyncGroup
+from cogblocks.sim.timing import BASE_STEP
 from cogblocks.sync.blending import BlenderParams, alteration, lam_step
 from cogblocks.sync.coupling import Coupling
 
 __all__ = ["BlenderParams", "DT", "SyncModel", "order_parameter", "wrap"]
 
 TWO_PI = 2.0 * np.pi
-DT = 0.01
+DT = BASE_STEP
 
 
 def wrap(x: np.ndarray) -> np.ndarray:

@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cogblocks.sim.timing import BASE_STEP
+
 if TYPE_CHECKING:  # the blender module imports this one: a run-time import back would be a cycle
     import casadi as ca
 
@@ -259,7 +261,7 @@ def _settle_down_iterated(blender: Blender, dt: float, lam_star: float, tol: flo
     return last_out + 1 if last_out < n_max else math.inf
 
 
-def lambda_report(blender: Blender, dt: float = 0.01, *, tolerance: float = 0.02) -> LambdaReport:
+def lambda_report(blender: Blender, dt: float = BASE_STEP, *, tolerance: float = 0.02) -> LambdaReport:
     """Analyse the λ dynamics of ``blender`` saturated at its limit (``e = λ``).
 
     Parameters
@@ -331,7 +333,7 @@ def lambda_report(blender: Blender, dt: float = 0.01, *, tolerance: float = 0.02
     )
 
 
-def check_blender(blender: Blender, dt: float = 0.01) -> LambdaReport:
+def check_blender(blender: Blender, dt: float = BASE_STEP) -> LambdaReport:
     """Refuse unstable Blender parameters and warn about non-monotone ones.
 
     Raises

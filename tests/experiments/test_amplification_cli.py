@@ -68,7 +68,8 @@ def test_the_step_limit_reaches_the_library_chain(capsys, monkeypatch, tmp_path)
     monkeypatch.setattr(pipeline, "run_pipeline", lambda library, out, **options: calls.append(options) or {})
     library = tmp_path / "lib.npz"
     library.write_bytes(b"")
-    for argv, expected in (([], STEP_LIMIT), (["--step-limit", "0.8"], 0.8), (["--step-limit", "none"], None)):
-        main(["run", "amplification", "--library", str(library), "--out", str(tmp_path / "out"), "--json", *argv]) == 0
+    for extra, expected in (([], STEP_LIMIT), (["--step-limit", "0.8"], 0.8), (["--step-limit", "none"], None)):
+        argv = ["run", "amplification", "--library", str(library), "--out", str(tmp_path / "out"), "--json", *extra]
+        assert main(argv) == 0
         assert calls[-1]["step_limit"] == expected
     capsys.readouterr()
