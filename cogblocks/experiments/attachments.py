@@ -98,7 +98,7 @@ def lookahead_fields(value: Any) -> dict[str, Any] | None:
     model = {f.name: getattr(value.model, f.name) for f in dataclasses.fields(value.model)}
     if model["blender"] is not None:
         model["blender"] = {f.name: getattr(model["blender"], f.name) for f in dataclasses.fields(model["blender"])}
-    return {"model": model, "horizon": value.horizon, "every": value.replan_every}
+    return {"model": model, "horizon": value.horizon, "every": value.decide_ticks}
 
 
 def lookahead_policy(fields: dict[str, Any]) -> Any:
@@ -109,4 +109,5 @@ def lookahead_policy(fields: dict[str, Any]) -> Any:
     model = dict(fields["model"])
     if model["blender"] is not None:
         model["blender"] = BlenderParams(**model["blender"])
-    return LookaheadPolicy(SyncModel(**model), fields["horizon"], fields["every"])
+    model = SyncModel(**model)
+    return LookaheadPolicy(model, fields["horizon"], fields["every"] * model.dt)

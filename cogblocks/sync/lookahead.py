@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 
 from cogblocks.data.groups import SyncGroup
 from cogblocks.sync.model import BlenderParams, SyncModel, order_parameter
 from cogblocks.sync.motion import ACTIONS, HOLD_ACTION, OMEGA_L3_LIMIT, L3Context
+from cogblocks.sync.periods import seconds_ticks
 
 __all__ = ["LookaheadPolicy"]
 
@@ -28,26 +30,62 @@ class LookaheadPolicy:
         Model of the group for one episode (``omega`` of shape (N,)), with the blender in the loop.
     horizon : int
         Simulated ticks per plan.
-    replan_every : int
-        Ticks between two plans; 1 plans every tick.
+    decide_every : float, optional
+        Seconds between two plans, a positive multiple of the model's step; ``None`` plans every tick.
+    replan_every : int, optional
+        Deprecated: the same in ticks.
     """
 
-    def __init__(self, model: SyncModel, horizon: int = 25, replan_every: int = 1) -> None:
+    def __init__(
+        self,
+        model: SyncModel,
+        horizon: int = 25,
+        decide_every: float | None = None,
+        *,
+        replan_every: int | None = None,
+    ) -> None:
         if np.ndim(model.omega) != 1:
             raise ValueError("the look-ahead model describes a single episode: omega must have shape (N,)")
-        if horizon < 1 or replan_every < 1:
-            raise ValueError("horizon and replan_every must be at least 1")
+        if horizon < 1:
+            raise ValueError("horizon must be at least 1")
+        # the former unit, ticks: replan_every, or an int in decide_every's place, for one release
+        if isinstance(decide_every, (int, np.integer)) and not isinstance(decide_every, bool):
+            replan_every, decide_every = int(decide_every), None
+        if replan_every is not None:
+            if replan_every < 1:
+                raise ValueError("replan_every must be at least 1")
+            warnings.warn(
+                f"LookaheadPolicy: replan_every (ticks) is deprecated; give decide_every in seconds "
+                f"(decide_every={replan_every * model.dt:g})",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            ticks = int(replan_every)
+        else:
+            ticks = 1 if decide_every is None else seconds_ticks(self, "decide_every", decide_every, model.dt)
         self.model = model
         self.horizon = horizon
-        self.replan_every = replan_every
+        #: Ticks of the model's step between two plans.
+        self.decide_ticks = ticks
         self._action = HOLD_ACTION
+
+    @property
+    def replan_every(self) -> int:
+        """Deprecated: :attr:`decide_ticks`."""
+        warnings.warn("LookaheadPolicy.replan_every is deprecated: use decide_ticks", DeprecationWarning, stacklevel=2)
+        return self.decide_ticks
 
     @classmethod
     def for_group(
-        cls, group: SyncGroup, *, blender: BlenderParams | None = None, horizon: int = 25, replan_every: int = 1
+        cls,
+        group: SyncGroup,
+        *,
+        blender: BlenderParams | None = None,
+        horizon: int = 25,
+        decide_every: float | None = None,
     ) -> LookaheadPolicy:
         """Look-ahead with an exact model of a group (on its graph) and the given blender."""
-        return cls(SyncModel.from_group(group, blender=blender), horizon, replan_every)
+        return cls(SyncModel.from_group(group, blender=blender), horizon, decide_every)
 
     def plan_through(self, blender: BlenderParams) -> None:
         """Predict through ``blender``, the blender of the diagram the policy's motion computer sits in."""
@@ -59,7 +97,7 @@ class LookaheadPolicy:
 
     def act(self, context: L3Context) -> int:
         """Best action of a fresh plan on planning ticks, else the current plan's action."""
-        if context.k % self.replan_every == 0:
+        if context.k % self.decide_ticks == 0:
             self._action = int(np.argmax(self.predicted_order_parameter(context)))
         return self._action
 

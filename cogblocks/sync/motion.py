@@ -1,21 +1,13 @@
 """Motion computers: the reference phase θ_ref that the L2 blender pulls toward (section 5.2.2, Figure 4).
 
-:class:`MotionComputer` is the role: every motion computer has its ports, so one can replace another
-in a diagram:
-
-* input ``theta`` (shape (N,), rad, wrapped): the participants' own phases;
-* input ``lam`` (scalar, rad): the blender's current threshold λ (context for
-  policies that plan within the blender's limit);
-* output ``theta_ref`` (scalar, rad, wrapped);
-
-and says how often it decides (:attr:`MotionComputer.decision_period`, seconds) and takes the blender it
-works behind (:meth:`MotionComputer.plan_through`). :class:`OscillatorMotion` is the deliverable's L3
-reference: a virtual Kuramoto oscillator at the assisted participant's node whose frequency a policy
-nudges every tick. :class:`MeanPhaseMotion` is the simplest alternative: the circular mean of the
-others' phases."""
+:class:`MotionComputer` is the role, the ports every motion computer has, so that one can replace another in a
+diagram. :class:`OscillatorMotion` is the deliverable's L3 reference: a virtual Kuramoto oscillator at the assisted
+participant's node whose frequency a policy nudges every tick. :class:`MeanPhaseMotion` is the simplest
+alternative: the circular mean of the others' phases."""
 
 from __future__ import annotations
 
+import copy
 import math
 import warnings
 from dataclasses import dataclass
@@ -54,9 +46,8 @@ OMEGA_L3_LIMIT = 15.0
 def l3_observation(theta_l3: Any, theta_others: np.ndarray, omega_prev: Any) -> np.ndarray:
     """The L3 policy's observation ``[angle(q), 1 − |q|, ω_prev]``.
 
-    ``q = mean_j exp(i wrap_π(θ_L3 − θ_j))`` over the other participants: its
-    angle is where the virtual oscillator sits relative to their circular mean,
-    ``1 − |q|`` how spread they are. Broadcasts over leading axes.
+    ``q = mean_j exp(i wrap_π(θ_L3 − θ_j))`` over the other participants: its angle is where the virtual
+    oscillator sits relative to their circular mean, ``1 − |q|`` how spread they are. Broadcasts over leading axes.
     """
     offsets = np.asarray(theta_l3, dtype=float)[..., None] - theta_others
     # sum / n rather than mean(): the same value without mean()'s per-call overhead, which dominates here
@@ -77,13 +68,13 @@ class L3Context:
     Attributes
     ----------
     k : int
-        Tick index.
+        The tick.
     obs : ndarray, shape (3,)
         :func:`l3_observation` of this tick.
     theta : ndarray, shape (N,)
         The participants' own phases; ``theta[assisted]`` is θ_L0.
     theta_l3 : float
-        Phase of the virtual oscillator, i.e. θ_ref of this tick.
+        Phase of the virtual oscillator, θ_ref of this tick.
     lam : float
         The blender's threshold λ of this tick.
     omega_prev : float
@@ -134,17 +125,16 @@ class MotionComputer(Block):
 
     Notes
     -----
-    Implementations: :class:`OscillatorMotion` (the deliverable's virtual oscillator, steered by an
-    L3 policy), :class:`MeanPhaseMotion`, :class:`~cogblocks.sync.receding.RecedingPlanMotion` (the
-    planner; :func:`~cogblocks.sync.planned.whole_trial_plan` is its one-decision preset),
-    :class:`~cogblocks.sync.mpc.MPCMotion`, and the shield :class:`~cogblocks.sync.shielded.ShieldedMotion`
-    around an oscillator; ``cogblocks.diagrams.sync.MOTIONS`` names their presets.
+    Implementations: :class:`OscillatorMotion`, :class:`MeanPhaseMotion`, the planner
+    :class:`~cogblocks.sync.receding.RecedingPlanMotion` (:func:`~cogblocks.sync.planned.whole_trial_plan` is its
+    one-decision preset), :class:`~cogblocks.sync.mpc.MPCMotion`, and the shield
+    :class:`~cogblocks.sync.shielded.ShieldedMotion` around any of them; ``cogblocks.diagrams.sync.MOTIONS``
+    names their presets.
     ``MotionComputer(policy, n=..., ...)``, the name's earlier meaning, still builds an :class:`OscillatorMotion`,
     with a :class:`DeprecationWarning`; ``MotionComputer(n, assisted)`` is a block with the role's ports that
     holds θ_ref at 0.
 
-    Bad data policy: the role's own block ignores its inputs, so NaN or inf in them never reaches
-    θ_ref; each implementation states its own policy.
+    Bad data policy: the role's own block ignores its inputs; each implementation states its own policy.
     """
 
     def __new__(cls, *args: Any, **kwargs: Any) -> MotionComputer:
@@ -179,9 +169,13 @@ class MotionComputer(Block):
         return None
 
     def plan_through(self, blender: BlenderParams) -> None:
-        """Take the parameters of the blender the block works behind (:class:`~cogblocks.sync.L2Sync` calls this).
+        """Take the parameters of the blender the block works behind (:class:`~cogblocks.sync.L2Sync` calls this);
+        a motion computer that predicts through the blender plans with them, one that does not ignores them."""
 
-        A motion computer that predicts through the blender plans with them; one that does not ignores them."""
+    def predictor(self) -> MotionComputer:
+        """A copy, outside any diagram, that a prediction runs ahead on predicted phases (a deep copy by default;
+        an implementation may return a cheaper equivalent)."""
+        return copy.deepcopy(self, {id(self._parent): None})
 
 
 class _IdentifyingMotion(MotionComputer):
@@ -273,18 +267,15 @@ class MeanPhaseMotion(MotionComputer):
 class OscillatorMotion(MotionComputer):
     """The deliverable's L3 reference: a virtual oscillator whose frequency a policy steers.
 
-    ``θ_ref[k] = θ_L3[k]`` with
-    ``θ_L3[k+1] = wrap(θ_L3[k] + dt (ω_L3[k] + gain Σ_j a_aj sin(θ_j[k] − θ_L3[k])))``,
-    ``ω_L3[k] = clip(ω_L3[k−1] + ACTIONS[policy.act(...)], ±15)`` and
-    ``θ_L3[0] = 0``. The oscillator sits at the assisted participant's node
-    (coupled to its neighbours' own phases). Since the action of tick ``k``
-    first moves ``θ_L3[k+1]``, the output needs no input of the same tick.
+    ``θ_ref[k] = θ_L3[k]`` with ``θ_L3[k+1] = wrap(θ_L3[k] + dt (ω_L3[k] + gain Σ_j a_aj sin(θ_j[k] − θ_L3[k])))``,
+    ``ω_L3[k] = clip(ω_L3[k−1] + ACTIONS[policy.act(...)], ±15)`` and ``θ_L3[0] = 0``. The oscillator sits at the
+    assisted participant's node (coupled to its neighbours' own phases). Since the action of tick ``k`` first moves
+    ``θ_L3[k+1]``, the output needs no input of the same tick.
 
     Parameters
     ----------
     policy : L3Policy
-        Chooses the frequency increment every tick (e.g. a trained DQN or a
-        look-ahead planner).
+        Chooses the frequency increment every tick (e.g. a trained DQN or a look-ahead planner).
     n : int
         Number of participants.
     assisted : int
@@ -294,14 +285,13 @@ class OscillatorMotion(MotionComputer):
     omega_init : float
         ``ω_L3[−1]``; the deliverable's choice is the mean natural frequency.
     adjacency : graph spec
-        The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a
-        weighted, possibly directed matrix); row ``assisted`` couples the oscillator.
+        The group's graph (``"ring"``, ``"all"``, ``("random", p, seed)`` or a weighted, possibly directed
+        matrix); row ``assisted`` couples the oscillator.
 
     Notes
     -----
-    Bad data policy: on a tick with a non-finite phase or λ the policy is not
-    asked (it only ever sees finite contexts) and the oscillator coasts at its
-    last frequency, without coupling.
+    Bad data policy: on a tick with a non-finite phase or λ the policy is not asked (it only ever sees finite
+    contexts) and the oscillator coasts at its last frequency, without coupling.
     Runs a batch at once when the policy has ``act_rows(context)`` (context fields and actions one row
     per run, as :class:`~cogblocks.sync.DQNPolicy`): one call per tick for the batch; else per row.
     """
@@ -325,7 +315,8 @@ class OscillatorMotion(MotionComputer):
         self.policy = policy
         self.gain = finite_number(self, "gain", gain, low=0.0)
         self.omega_init = finite_number(self, "omega_init", omega_init, low=-OMEGA_L3_LIMIT, high=OMEGA_L3_LIMIT)
-        self.coupling = Coupling(checked_graph(self, adjacency, n), n).row(assisted)
+        self.graph = checked_graph(self, adjacency, n)
+        self.coupling = Coupling(self.graph, n).row(assisted)
         self.others = np.array([j for j in range(n) if j != assisted])
         self.add_state("theta_l3", 0.0)
         self.add_state("omega_prev", self.omega_init)
@@ -358,6 +349,16 @@ class OscillatorMotion(MotionComputer):
         if callable(getattr(self.policy, "plan_through", None)):
             self.policy.plan_through(blender)
 
+    def predictor(self) -> OscillatorMotion:
+        """A copy that asks the policy's ``predictor()`` (a cheaper copy, as ``DQNPolicy``'s), else the policy."""
+        cheaper = getattr(self.policy, "predictor", None)
+        policy = cheaper() if callable(cheaper) else self.policy
+        copied = OscillatorMotion(
+            policy, n=self.n, assisted=self.assisted, gain=self.gain, omega_init=self.omega_init, adjacency=self.graph
+        )
+        copied.load_state_dict(self.state_dict())
+        return copied
+
     def reset(self) -> None:
         super().reset()
         if hasattr(self.policy, "reset"):
@@ -378,23 +379,12 @@ class OscillatorMotion(MotionComputer):
         self.theta_l3, self.omega_prev = self.step_oscillator(k, theta, lam, self.theta_l3, self.omega_prev, self.dt)
 
     def step_oscillator(
-        self,
-        k: int,
-        theta: np.ndarray,
-        lam: float,
-        theta_l3: float,
-        omega_prev: float,
-        dt: float,
-        policy: L3Policy | None = None,
+        self, k: int, theta: np.ndarray, lam: float, theta_l3: float, omega_prev: float, dt: float
     ) -> tuple[float, float]:
-        """One tick (``dt`` s) of the virtual oscillator from ``(θ_L3, ω_prev)`` on finite ``theta`` and ``lam``.
-
-        Asks ``policy`` (the block's by default) for its action and returns the next ``(θ_L3, ω_L3)``; the
-        block's state is untouched, so a prediction can run the oscillator ahead on phases of its own.
-        """
+        """One tick (``dt`` s) of the virtual oscillator from ``(θ_L3, ω_prev)`` on finite ``theta`` and ``lam``:
+        the policy's action, then the next ``(θ_L3, ω_L3)``; the block's state is untouched."""
         obs = l3_observation(theta_l3, theta[self.others], omega_prev)
         context = L3Context(k, obs, theta.copy(), theta_l3, lam, omega_prev, self.assisted)
-        action = (self.policy if policy is None else policy).act(context)
-        omega = min(max(omega_prev + ACTIONS[action], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
+        omega = min(max(omega_prev + ACTIONS[self.policy.act(context)], -OMEGA_L3_LIMIT), OMEGA_L3_LIMIT)
         pull = float(np.dot(self.coupling, np.sin(theta - theta_l3)))
         return wrap_angle(theta_l3 + dt * (omega + self.gain * pull)), omega

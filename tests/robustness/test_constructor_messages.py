@@ -331,7 +331,7 @@ CASES = [
     case("RecedingPlanMotion", "min_ticks", 0, "integer >= 1"),
     case("RecedingPlanMotion", "min_excitation", -1.0, "[0.0, inf)"),
     case("RecedingPlanMotion", "max_iter", 0, "integer >= 1"),
-    case("ShieldedMotion", "motion", 5, "OscillatorMotion", given="int"),
+    case("ShieldedMotion", "motion", 5, "MotionComputer block", given="int"),
     case("ShieldedMotion", "adjacency", [[1.0]], "shape (3, 3)", given="(1, 1)"),
     case("ShieldedMotion", "blender", 5, "BlenderParams", given="int"),
     case("ShieldedMotion", "decide_every", -1.0, "(0.0, inf)"),

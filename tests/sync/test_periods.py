@@ -58,3 +58,21 @@ def test_the_old_and_new_forms_decide_at_the_same_ticks():
         decisions.append(len(block.choices))
     np.testing.assert_array_equal(*runs)
     assert decisions[0] == decisions[1] >= 9  # trusted near tick 100, then a decision every 30 ticks
+
+
+def test_the_look_ahead_policy_plans_every_decide_every_seconds_and_reads_the_old_ticks_with_a_warning():
+    from cogblocks.data.groups import TABLE2
+    from cogblocks.sync import LookaheadPolicy
+    from cogblocks.sync.model import SyncModel
+
+    model = SyncModel.from_group(TABLE2[1])
+    assert LookaheadPolicy(model).decide_ticks == 1
+    assert LookaheadPolicy(model, decide_every=0.05).decide_ticks == 5
+    with pytest.warns(DeprecationWarning, match=r"replan_every \(ticks\) is deprecated; .*decide_every=0.05\)"):
+        old = LookaheadPolicy(model, replan_every=5)
+    with pytest.warns(DeprecationWarning, match=r"decide_every=0.07\)"):
+        assert LookaheadPolicy(model, 25, 7).decide_ticks == 7  # the former positional ticks
+    with pytest.warns(DeprecationWarning, match="LookaheadPolicy.replan_every is deprecated: use decide_ticks"):
+        assert old.replan_every == 5
+    with pytest.raises(ValueError, match=r"decide_every must be a positive multiple of 0.01 s, got 0.015"):
+        LookaheadPolicy(model, decide_every=0.015)

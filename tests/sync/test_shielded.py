@@ -11,12 +11,12 @@ import torch
 from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
 from cogblocks.diagrams.sync import MOTIONS, pop_sync
 from cogblocks.sim import Diagram, Simulator
-from cogblocks.sync import DQNPolicy, MotionComputer, OscillatorMotion, ShieldedMotion
+from cogblocks.sync import DQNPolicy, MeanPhaseMotion, MotionComputer, OscillatorMotion, ShieldedMotion
 from cogblocks.sync.dqn_policy import NumpyDQNPolicy
 from cogblocks.sync.model import SyncModel, order_parameter
 from cogblocks.sync.motion import ACTIONS, OMEGA_L3_LIMIT, L3Context, l3_observation
 from cogblocks.sync.pacing import NONE, margin_choice
-from cogblocks.sync.shielded import FOLLOW, PolicyRollout
+from cogblocks.sync.shielded import FOLLOW
 
 
 class SteerPolicy:
@@ -41,7 +41,8 @@ def test_the_prediction_is_the_closed_loop_of_the_policy_and_of_doing_nothing_on
     np.fill_diagonal(a, 0.0)
     omega, theta, lam = rng.uniform(1.0, 4.0, n), rng.uniform(0, 2 * np.pi, n), 1.2
     shield = ShieldedMotion(_motion(SteerPolicy(), n, assisted, gain, a), adjacency=a)
-    job = PolicyRollout.start(theta, lam, (0.4, 2.5), (omega, gain), k=0, dt=0.01, steps=250)
+    shield.motion.theta_l3, shield.motion.omega_prev = 0.4, 2.5
+    job = shield.start_rollout(theta, lam, (omega, gain), k=0, dt=0.01, steps=250)
     for budget in (1, 7, 1000):  # any chunks
         shield.advance_rollout(job, budget)
     model = SyncModel(omega, gain, a, assisted)
@@ -71,8 +72,9 @@ def test_the_backup_part_scores_following_then_doing_nothing_against_doing_nothi
     omega, theta, lam = rng.uniform(1.0, 4.0, n), rng.uniform(0, 2 * np.pi, n), 1.1
     steps, backup_steps, h = 60, 40, 0.05
     shield = ShieldedMotion(_motion(SteerPolicy(), n, assisted, gain, a), adjacency=a, backup=2.0)
-    job = PolicyRollout.start(
-        theta, lam, (0.4, 2.5), (omega, gain), k=0, dt=0.01, steps=steps, backup_steps=backup_steps, backup_step=h
+    shield.motion.theta_l3, shield.motion.omega_prev = 0.4, 2.5
+    job = shield.start_rollout(
+        theta, lam, (omega, gain), k=0, dt=0.01, steps=steps, backup_steps=backup_steps, backup_step=h
     )
     for budget, backup_budget in ((7, 3), (100, 0), (0, 5), (0, 1000)):  # any chunks; the backup waits its turn
         shield.advance_rollout(job, budget, backup_budget)
@@ -233,15 +235,67 @@ def test_bad_data_policy():
 def test_the_shielded_network_is_the_default_dqn_and_the_network_alone_is_dqn_raw():
     """(test_sync's Table 3 check on group 1 runs the default, shielded ``dqn``.)"""
     block = MOTIONS["dqn"](TABLE2[1])
-    assert isinstance(block, ShieldedMotion) and isinstance(block.predictor, NumpyDQNPolicy)
+    assert isinstance(block, ShieldedMotion) and isinstance(block.ahead.policy, NumpyDQNPolicy)
     assert isinstance(MOTIONS["dqn_raw"](TABLE2[1]), MotionComputer)
 
 
 def test_constructor_checks():
-    with pytest.raises(ValueError, match="ShieldedMotion: motion must be an OscillatorMotion, got str"):
+    with pytest.raises(ValueError, match="ShieldedMotion: motion must be a MotionComputer block, got str"):
         ShieldedMotion("dqn")
     motion = _motion(SteerPolicy(), 3, 0, 1.0, "ring")
     with pytest.raises(ValueError, match=r"ShieldedMotion: margin must be a finite number in \[0.0, inf\), got -0.1"):
         ShieldedMotion(motion, margin=-0.1)
     with pytest.raises(ValueError, match=r"ShieldedMotion: backup must be a finite number in \[0.0, inf\), got -1"):
         ShieldedMotion(motion, backup=-1)
+
+
+def test_it_wraps_any_motion_computer_and_predicts_it_on_the_predicted_phases():
+    """Around the circular mean: the policy row of a prediction is the closed loop with the mean of row 1's own
+    predicted phases as θ_ref (an independent loop on SyncModel), and when following, θ_ref is the mean's."""
+    rng = np.random.default_rng(6)
+    n, assisted, gain = 5, 3, 0.8
+    omega, theta, lam = rng.uniform(1.0, 4.0, n), rng.uniform(0, 2 * np.pi, n), 1.3
+    a = rng.uniform(0.2, 1.2, (n, n))
+    np.fill_diagonal(a, 0.0)
+    shield = ShieldedMotion(MeanPhaseMotion(n, assisted), adjacency=a)
+    job = shield.start_rollout(theta, lam, (omega, gain), k=0, dt=0.01, steps=120)
+    shield.advance_rollout(job, 1000)
+    model = SyncModel(omega, gain, a, assisted)
+    th, la, total = theta.copy(), np.array(lam), 0.0
+    for _ in range(120):
+        others = np.delete(th, assisted)
+        mean = np.angle(np.exp(1j * others).sum()) % (2 * np.pi)
+        seen, _, la = model.blend(th, np.array(mean), la)
+        total += float(order_parameter(seen))
+        th, _ = model.advance(th, seen, np.array(0.0), np.array(0.0))
+    np.testing.assert_allclose(job.scores[1], total / 120, rtol=0, atol=1e-10)
+
+    group = random_groups(12, "train", 0)[11]
+    phases, lams = _recorded(group, 8.0)
+    block = ShieldedMotion(MeanPhaseMotion(group.n, group.assisted), adjacency=group.graph, decide_every=0.5)
+    modes: list[int] = []
+    ref = _run(block, phases, lams, modes)
+    following = np.r_[False, np.array(modes[:-1]) == FOLLOW]
+    mean = _run(MeanPhaseMotion(group.n, group.assisted), phases, lams)
+    assert following.any()
+    np.testing.assert_array_equal(ref[following], mean[following])
+
+
+def test_a_snapshot_of_a_shield_continues_bit_for_bit_with_its_wrapped_block_and_its_prediction():
+    group = TABLE2[1]
+    phases, lams = _recorded(group, 4.0)
+    d = Diagram()
+    m = d.add("m", ShieldedMotion(MOTIONS["dqn_raw"](group), adjacency=group.graph, decide_every=0.5))
+    d.expose_input("theta", m.theta)
+    d.expose_input("lam", m.lam)
+    d.expose_output("theta_ref", m.theta_ref)
+    sim = d.compile(0.01)
+    refs = []
+    for k in range(400):
+        if k == 260:
+            snapshot = sim.state_dict()
+        refs.append(float(sim.step(theta=phases[k], lam=lams[k])["theta_ref"]))
+    assert m.job is not None
+    sim.load_state_dict(snapshot)
+    again = [float(sim.step(theta=phases[k], lam=lams[k])["theta_ref"]) for k in range(260, 400)]
+    assert again == refs[260:]
