@@ -182,8 +182,8 @@ def windowed_control_bound(
         Also start from the reference that the ``pace`` policy (:class:`~cogblocks.sync.PacingMotion`, identified
         model) makes in closed loop: a switching reference that the windows alone do not find on slow groups.
     guard : bool
-        Also start from the closed-loop reference of ``pop_sync``'s default policy
-        (:class:`~cogblocks.sync.GuardedPacingMotion`, told the run's length), so that the bound is at least its r.
+        Also start from the closed-loop reference of the ``guard`` rule (:class:`~cogblocks.sync.GuardedPacingMotion`,
+        told the run's length): a start the windows alone do not find, so that the bound is at least its r.
     passes : sequence of (window, tail, knot)
         Further sweeps over the whole run after the first, each from the result of the one before, with its own
         window, tail and knot (s; ``screen`` as above). Windows of other lengths find moves the first does not.

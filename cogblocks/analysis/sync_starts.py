@@ -74,7 +74,7 @@ def policy_starts(
     motions = {}
     if pace:
         motions["pace"] = PacingMotion(group.n, group.assisted, adjacency=adjacency, blender=params)
-    if guard:  # pop_sync's default, told the run's length as the held-out evaluation tells it
+    if guard:  # the guard rule, told the run's length
         motions["guard"] = GuardedPacingMotion.for_trial(
             group.n, group.assisted, adjacency=adjacency, blender=params, end=duration
         )
