@@ -13,7 +13,7 @@ The training part of the shipped encoder's split is split again, seeded and stra
 part, and the first ``limit`` inner movements that do not encode ``e_des`` are replayed through the
 optimised blender (the blender ensemble, as ``cogblocks run amplification``) and scored by the
 shipped judges. The inner movements were in the training data of the networks and judges, so the
-shares only rank settings (docs/pop-amplification.md, "Realistic plans"). Prints one JSON line: the
+shares only rank settings (docs/validation/amplification.md). Prints one JSON line: the
 settings (``solve_ticks`` among them), then the row, whose count of ticks that worked on a decision is
 ``ticks_worked`` (``solve_ticks`` in :func:`~cogblocks.diagrams.amplification.run_amplification`'s row).
 """

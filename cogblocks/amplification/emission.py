@@ -5,7 +5,7 @@ plus a correction ``u``; it is checked on ``b + u``. Two ways to emit it:
 
 - ``"human"``: the measured human plus the correction, ``v_h + u``. The terminal gap is ``dt·Σ u``
   whatever the human does, but the emitted movement is not the checked one: the prediction's error
-  enters it between a decision and its commit and after the last commit (docs/pop-amplification.md).
+  enters it between a decision and its commit and after the last commit (docs/validation/amplification.md).
 - ``"plan"``: the plan itself, ``b + u``, so that the emitted movement is the movement planned and
   checked. The terminal gap then drifts by ``dt·Σ (b − v_h)``; the next decision sees the drift and
   plans it away, and a **guard** covers the ticks until then (:func:`guarded_velocity`): when the final
@@ -16,9 +16,9 @@ plus a correction ``u``; it is checked on ``b + u``. Two ways to emit it:
 - ``"tail"``: ``v_h + u``, except a plan committed within ``knot_spacing`` samples of its end (with decisions
   every ``knot_spacing`` samples, the last one), emitted as ``b + u`` under the guard: the movement after the
   last commit is the checked one, and the terminal gap takes the prediction's error over that tail only
-  (docs/pop-amplification.md). The state in force says which (``as_planned``).
+  (docs/validation/amplification.md). The state in force says which (``as_planned``).
 
-The guard's options (:func:`guard_settings`, docs/pop-amplification.md): ``guard_rest``, a human
+The guard's options (:func:`guard_settings`, docs/validation/amplification.md): ``guard_rest``, a human
 measured at rest is predicted to stay at rest (as a decision predicts it), so that the guard sees the gap the plan's
 movement opens after the human has stopped; ``guard_margin``, the gap is bounded at ``δ_pos − guard_margin``.
 

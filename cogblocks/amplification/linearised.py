@@ -47,7 +47,7 @@ def one_blas_thread() -> AbstractContextManager:
     With several members the stacked first layer (e.g. 2200 × 66 for eleven networks) is large enough for
     OpenBLAS to split its products over threads; on a machine whose other cores are busy the calling thread
     then waits, spinning, for a thread that is not scheduled, and a tick's CPU time grows tenfold
-    (docs/pop-amplification.md). One thread is fast enough at these sizes.
+    (docs/validation/amplification.md). One thread is fast enough at these sizes.
     """
     return _blas().limit(limits=1)
 

@@ -5,7 +5,7 @@ neighbour it is η_i, the projector's nearest movement of the class not encoding
 tuned on reaches its end by a path no single library movement follows; averaging the ``k`` nearest
 movements of the whole library (both classes: the prediction is of the motion, not of its class) cuts the
 error of the predicted end point at the last decision where it is large (mean over the movements ending beyond
-20 mm: 17–22 mm with η_i, 11–17 mm with 5; docs/pop-amplification.md).
+20 mm: 17–22 mm with η_i, 11–17 mm with 5; docs/validation/amplification.md).
 
 The distance is the projector's (:class:`~cogblocks.amplification.projector.PrefixProjection`, mean
 Euclidean distance of the velocity prefixes) kept as running sums in the blender's state, one sample per

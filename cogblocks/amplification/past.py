@@ -3,7 +3,7 @@
 A decision at tick ``T`` plans from ``t0 = T + solve_ticks − 1`` on, for a past in which, on ``T … t0 − 1``,
 the human follows the prediction and the state in force emits on it; the plan is committed at ``t0``. The
 past actually emitted there (the measured human, and the state in force on it) differs, so a plan accepted
-on its problem can fail its constraints on the movement it is committed into (docs/pop-amplification.md).
+on its problem can fail its constraints on the movement it is committed into (docs/validation/amplification.md).
 With ``track_past``, every tick of the solve replaces in the problem the prediction of the
 ticks emitted since by what was measured and emitted (:func:`~cogblocks.amplification.plan.with_past`:
 the knots act from ``t0`` on, so only the problem's fixed part changes) and the iterations continue from

@@ -1,7 +1,7 @@
 """Realistic directions for the optimised blender: a PCA of one class's classifier inputs.
 
 Unrestricted, :class:`~cogblocks.amplification.OptimalBlender` finds corrections that satisfy the
-networks it constrains by moving the classifier input off the data (docs/pop-amplification.md):
+networks it constrains by moving the classifier input off the data (docs/validation/amplification.md):
 independently trained networks do not follow. A :class:`MovementSubspace` holds the mean and the
 leading principal directions of the classifier inputs (20 resampled points per axis, as
 :func:`cogblocks.data.features.classifier_inputs`) of the library's movements of the desired class;

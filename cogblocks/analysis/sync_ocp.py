@@ -134,7 +134,7 @@ def known_noise_tick_model(group: SyncGroup, adjacency: np.ndarray, params: Blen
 
 #: ``windowed_control_bound(**THOROUGH)``: every policy start and three more sweeps (windows of 2, 10 and 4 s)
 #: after the first: a tighter bound (a few tenths of a percentage point of mean gain on held-out groups) at about
-#: three times the CPU (docs/pop-sync.md, "A thorough bound").
+#: three times the CPU (docs/validation/sync.md, Claim 3).
 THOROUGH: dict[str, Any] = {
     "pace": True,
     "guard": True,

@@ -75,7 +75,8 @@ BLENDER_WITH_ENCODER = True
 #: How many networks of each shipped blender ensemble the optimised blender constrains: ``"profile"`` of
 #: ``encoder_ensemble.pt`` (60 profile inputs), ``"kinematic"`` of ``encoder_ensemble_kinematic.pt``
 #: (``mlp_kinematic``: the profile and the six kinematic features). On the inner split the four kinematic
-#: networks joining the two profile ones made the plans convince the judges more often (docs/pop-amplification.md).
+#: networks joining the two profile ones made the plans convince the judges more often
+#: (docs/validation/amplification.md).
 CONSTRAINED_MEMBERS = {"profile": 2, "kinematic": 4}
 
 

@@ -40,7 +40,7 @@ __all__ = [
 ]
 
 #: Default slew limit (rad/s) of the continuous blender: a change of the alteration below the 0.05 rad per
-#: 10 ms tick at which the avatar runs 5 rad/s off the person's pace (docs/pop-sync.md, "A blender that never jumps").
+#: 10 ms tick at which the avatar runs 5 rad/s off the person's pace (docs/explanation/avatar-naturalness.md).
 SLEW = 4.5
 
 _OLD_NAMES = {"lambda_min": "lam_min", "lambda_max": "lam_max", "kappa_up": "kappa_plus", "kappa_down": "kappa_minus"}

@@ -48,7 +48,7 @@ __all__ = [
 ]
 
 #: Default ``margin``: four times :class:`PacingMotion`'s. Re-tuned on the validation split (the shortest groups of
-#: ``random_groups(600, "validation", 0)``, docs/pop-sync.md "Guarded pacing motion computer"): 0.01 let predicted
+#: ``random_groups(600, "validation", 0)``, docs/validation/sync.md): 0.01 let predicted
 #: gains of ~0.012 in mean r act on a 15-participant ring near locking that lost 1.1 %; 0.02 leaves it unaltered.
 MARGIN = 0.02
 
@@ -112,7 +112,7 @@ class GuardedPacingMotion(PacingMotion):
         Periods for which an alteration, once chosen, is kept (while the checks pass) before it is chosen
         again (default :data:`COMMIT`); 0: every decision chooses afresh. A prediction scores a candidate held
         over the whole horizon; re-choosing every period can stop a pacing plan half-way, where the group is
-        left worse off than unaltered (docs/pop-sync.md).
+        left worse off than unaltered (docs/validation/sync.md).
     end : float, optional
         When the run ends (s from the block's first tick), if known: a trial of fixed length, whose score is
         the mean r up to its end. Predictions are then scored only up to it (at least one Euler step), since
@@ -122,7 +122,7 @@ class GuardedPacingMotion(PacingMotion):
         If not None (s; default :data:`EARLY`; past the horizon, the whole horizon), an alteration is chosen only if
         its predicted mean r over the first ``early`` s also beats doing nothing (by 0, not by ``margin``): a plan
         whose predicted gain comes only late in the horizon pays only if it is held that long, and the block
-        re-decides every period (docs/pop-sync.md). None: the whole-horizon score alone.
+        re-decides every period (docs/validation/sync.md). None: the whole-horizon score alone.
 
     Notes
     -----

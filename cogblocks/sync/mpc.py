@@ -137,7 +137,7 @@ class MPCMotion(_IdentifyingMotion):
         Deprecated: the period in ticks; give ``decide_every`` in seconds.
     knots : int
         Free knots in the horizon (horizon = (knots + 1) periods, the committed one included: 3 s by
-        default). The horizon is a trade-off measured on Table 2's groups (docs/pop-sync.md): 1 s is best
+        default). The horizon is a trade-off measured on Table 2's groups (docs/validation/sync.md): 1 s is best
         on group 1 and 3 s on group 3, whose slow entrainment a short horizon does not see.
     step : float
         RK4 step (s) inside the NLP; must divide the period.

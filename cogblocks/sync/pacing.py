@@ -15,7 +15,7 @@ It keeps the candidate with the best predicted time-averaged order parameter, bu
 when that prediction beats *none* by ``margin``, and leaves its current choice only for one that beats it by
 ``switch_margin``: a small predicted gain is within the model's error over a long horizon, and doing nothing is
 what cannot lower r. A long horizon is what lets a constant pacing frequency show its worth: it entrains a
-group over tens of seconds, which a horizon of a few seconds does not see (docs/pop-sync.md).
+group over tens of seconds, which a horizon of a few seconds does not see (docs/validation/sync.md).
 
 The model is identified by :class:`~cogblocks.sync.identification.KuramotoRLS` on the observed phases, θ_L2
 rebuilt from the θ_ref the block emitted and the λ it received; no oracle.

@@ -63,8 +63,8 @@ MARGIN = 1e-4
 
 #: Default ``sweeps`` of a decision (window, tail, knot in s): the whole-run bound's first sweep. With it, the defaults
 #: ``decide_every`` = 1 s (the shortest period a decision fits on every validation group tried, N = 15 all-to-all
-#: included), ``compare`` = 10 s and ``min_ticks`` = 50 were chosen on 24 short validation groups (docs/pop-sync.md,
-#: "Re-planning every second (`replan`)").
+#: included), ``compare`` = 10 s and ``min_ticks`` = 50 were chosen on 24 short validation groups
+#: (docs/validation/sync.md, Claim 1).
 RECEDING_SWEEPS: tuple[tuple[float, float, float], ...] = ((4.0, 4.0, 0.25),)
 
 

@@ -109,7 +109,7 @@ def train_blender_kinematic(
 
     Bagged like the judges (whose seeds, 9000 + …, and folds they do not share): on the inner split such members
     made the plans convince the judges more often than members trained on the whole part did
-    (docs/pop-amplification.md). The recipe's architecture must be ``"mlp_kinematic"``, the
+    (docs/validation/amplification.md). The recipe's architecture must be ``"mlp_kinematic"``, the
     one the blender can constrain, without early stopping.
     """
     if recipe.architecture != "mlp_kinematic" or recipe.patience > 0 or members < 2:

@@ -131,7 +131,7 @@ RECIPES = {
 
 
 #: The recipe of the shipped ensembles: the best cross-validation score of :data:`RECIPES`
-#: (``python -m cogblocks.training.recipe --seed 0``; docs/pop-amplification.md has the table).
+#: (``python -m cogblocks.training.recipe --seed 0``; docs/validation/amplification.md has the table).
 CHOSEN = "longest_fast"
 
 #: The recipe of the shipped judges: the best cross-validation score of :data:`RECIPES` (architectures
