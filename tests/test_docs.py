@@ -219,3 +219,56 @@ def test_the_api_pages_cover_every_public_block():
 
 if __name__ == "__main__":  # one page in this interpreter: python tests/test_docs.py PAGE
     _run_page(Path(sys.argv[1]).resolve())
+
+
+# -- links between pages ------------------------------------------------------------------------------------------
+_LINK = re.compile(r"\]\(([^)\s]+)\)")
+_FENCE = re.compile(r"^(```|~~~)")
+
+
+def _anchors(page: Path) -> set[str]:
+    """The heading anchors MyST makes for ``page`` (GitHub's slugs: lower case, punctuation dropped, spaces to -)."""
+    anchors, fenced = set(), False
+    for line in page.read_text(encoding="utf-8").splitlines():
+        if _FENCE.match(line):
+            fenced = not fenced
+        elif not fenced and line.startswith("#"):
+            title = line.lstrip("#").strip().lower()
+            anchors.add(re.sub(r"\s", "-", re.sub(r"[^\w\s-]", "", title)))
+    return anchors
+
+
+def _broken_links(page: Path) -> list[str]:
+    broken, fenced = [], False
+    for number, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1):
+        if _FENCE.match(line):
+            fenced = not fenced
+            continue
+        for target in [] if fenced else _LINK.findall(line):
+            if re.match(r"[a-z]+:", target):
+                continue  # a web address
+            path, _, anchor = target.partition("#")
+            if path.endswith(".rst") or path.startswith("{"):
+                continue  # the generated reference, a role
+            file = (page.parent / path).resolve() if path else page
+            if not file.exists():
+                broken.append(f"line {number}: {target} (no such file)")
+            elif anchor and file.suffix == ".md" and anchor not in _anchors(file):
+                broken.append(f"line {number}: {target} (no heading #{anchor})")
+    return broken
+
+
+@pytest.mark.parametrize("page", [ROOT / "README.md", *sorted(DOCS.rglob("*.md"))], ids=_id)
+def test_every_link_between_pages_reaches_a_page_and_a_heading(page):
+    assert _broken_links(page) == []
+
+
+def test_the_link_check_finds_a_missing_page_and_a_missing_heading(tmp_path):
+    (tmp_path / "b.md").write_text("# Real heading, with a comma\n", encoding="utf-8")
+    page = tmp_path / "a.md"
+    page.write_text(
+        "[ok](b.md#real-heading-with-a-comma) [gone](c.md) [wrong](b.md#fake) [web](https://x.org/y.md)\n"
+        "```\n[in code](nowhere.md)\n```\n",
+        encoding="utf-8",
+    )
+    assert _broken_links(page) == ["line 1: c.md (no such file)", "line 1: b.md#fake (no heading #fake)"]
