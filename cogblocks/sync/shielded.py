@@ -145,8 +145,10 @@ class ShieldedMotion(PacingMotion):
             period=period,
         )
         self.backup = finite_number(self, "backup", backup, low=0.0)
-        self.motion = motion
-        self.ahead: MotionComputer = motion.predictor()
+        # the wrapped block and its predicting copy are work objects: their state lives in the
+        # declared motion_* / ahead_* mirrors, so a restored snapshot rebuilds them
+        self.add_scratch("motion", motion)
+        self.add_scratch("ahead", motion.predictor())
         self._motion_fields = tuple(motion.state_dict()["state"])
         self._declare_mirrors()
         # the prediction in progress by fields, meaningful while job_active (an idle one declares shapes and types)
@@ -155,7 +157,7 @@ class ShieldedMotion(PacingMotion):
         for name, value in idle.state().items():
             self.add_state(f"job_{name}", value)
         self._job_fields = tuple(idle.state())
-        self.job: PolicyRollout | None = None
+        self.add_scratch("job", None)  # rebuilt from the job_* fields on every restore
         self.predictions: list[tuple[float, float]] = []
 
     def _declare_mirrors(self) -> None:

@@ -71,7 +71,8 @@ def test_decisions_plan_on_the_neighbours_mean(e_des):
         setup.movements, blender_networks(setup.encoder), setup.table, e_des=e_des, subspace=setup.subspace,
         **options(iterations=3, neighbours=5),
     )  # fmt: skip
-    trace = replay_movement(setup, int(setup.humans[1]), blender)
+    # the rule's emission itself, without the limiter that smooths it
+    trace = replay_movement(setup, int(setup.humans[1]), blender, step_limit=None)
     v_h = np.asarray(trace["v_h"], dtype=np.float64)
     velocity = setup.movements.velocity
     moving_decisions = 0

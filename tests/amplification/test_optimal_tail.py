@@ -21,7 +21,8 @@ def replay(setup, networks, human, **extra):
     blender = RecordingBlender(
         setup.movements, networks, setup.table, e_des=setup.e_des, subspace=setup.subspace, **eta_i_options(**extra)
     )
-    trace = replay_movement(setup, human, blender, probes={"nearest": "l2.nearest"})
+    # the rule's emission itself, without the limiter that smooths it
+    trace = replay_movement(setup, human, blender, probes={"nearest": "l2.nearest"}, step_limit=None)
     return blender, trace
 
 
