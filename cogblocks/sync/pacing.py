@@ -18,7 +18,9 @@ what cannot lower r. A long horizon is what lets a constant pacing frequency sho
 group over tens of seconds, which a horizon of a few seconds does not see (docs/validation/sync.md).
 
 The model is identified by :class:`~cogblocks.sync.identification.KuramotoRLS` on the observed phases, θ_L2
-rebuilt from the θ_ref the block emitted and the λ it received; no oracle.
+rebuilt from the θ_ref the block emitted and the λ it received; no oracle. That identification, the trust in the
+model and the decision period are :class:`~cogblocks.sync.identified.PeriodicIdentifyingMotion`'s, and the Euler
+step of the predictions is :func:`~cogblocks.sync.identified.euler_step`.
 """
 
 from __future__ import annotations
@@ -33,13 +35,11 @@ from cogblocks.blocks.angles import wrap_angle, wrap_pi
 from cogblocks.sim.params import finite_array, finite_number, one_of, positive_int
 from cogblocks.sync.blending import BlenderParams, lam_step
 from cogblocks.sync.identification import usable_phases
-from cogblocks.sync.motion import OMEGA_L3_LIMIT, _IdentifyingMotion
-from cogblocks.sync.periods import block_step, decision_period, period_ticks
+from cogblocks.sync.identified import MEAN, NONE, PACE, PeriodicIdentifyingMotion, euler_step, margin_choice
+from cogblocks.sync.motion import OMEGA_L3_LIMIT
 
 __all__ = ["MEAN", "NONE", "PACE", "PacingMotion", "euler_step", "margin_choice", "predicted_order"]
 
-#: Candidate kinds: leave θ_L0 unaltered, follow the others' circular mean, pace at a constant frequency.
-NONE, MEAN, PACE = 0, 1, 2
 _MODES = {"none": NONE, "mean": MEAN}
 
 
@@ -96,58 +96,7 @@ def predicted_order(
     return total / steps
 
 
-def euler_step(
-    theta: np.ndarray,
-    lam: np.ndarray,
-    model: tuple[np.ndarray, float],
-    adjacency: np.ndarray,
-    assisted: int,
-    blender: BlenderParams,
-    candidates: tuple[np.ndarray, np.ndarray, np.ndarray],
-    elapsed: float,
-    step: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One Euler step of :func:`predicted_order` for every candidate (one row each).
-
-    ``theta`` (C, N) and ``lam`` (C,) are the state ``elapsed`` seconds after the candidates' start; returns
-    the state ``step`` seconds later and the order parameter of the phases seen now (θ_L2 substituted), (C,).
-    """
-    kinds, values, anchors = candidates
-    omega, gain = model
-    n = theta.shape[1]
-    others = np.arange(n) != assisted
-    pace, mean = kinds == PACE, kinds == MEAN
-    sin, cos = np.sin(theta), np.cos(theta)
-    l0 = theta[:, assisted]
-    d = np.where(pace, wrap_pi(anchors + values * elapsed - l0), 0.0)
-    if mean.any():
-        to_mean = wrap_pi(np.arctan2(sin[:, others].sum(axis=1), cos[:, others].sum(axis=1)) - l0)
-        d = np.where(mean & (np.abs(to_mean) <= values), to_mean, d)
-    shift = np.clip(d, -lam, lam)
-    sin[:, assisted], cos[:, assisted] = np.sin(l0 + shift), np.cos(l0 + shift)
-    r = np.hypot(sin.sum(axis=1), cos.sum(axis=1)) / n
-    # eq. (5)-(6): λ relaxes toward λ∞(e), fast down (κ⁻), slow up (κ⁺)
-    lam = lam_step(lam, shift, blender, step)
-    # Σ_j a_ij sin(θ̃_j − θ̃_i) = cos θ̃_i (A sin θ̃)_i − sin θ̃_i (A cos θ̃)_i
-    pull = cos * (sin @ adjacency.T) - sin * (cos @ adjacency.T)
-    return theta + step * (omega + gain * pull), lam, r
-
-
-def margin_choice(kinds: np.ndarray, scores: np.ndarray, current: int, margin: float, switch_margin: float) -> int:
-    """The best-scored candidate, kept only if it beats the current one by ``switch_margin`` and *none* by ``margin``.
-
-    ``kinds[0]`` must be :data:`NONE`: the result is 0 or a candidate whose predicted mean r is at least
-    ``scores[0] + margin``, so a candidate predicted to lower r against doing nothing is never chosen.
-    """
-    best = int(np.argmax(scores))
-    if scores[best] < scores[current] + switch_margin:
-        best = current
-    if kinds[best] != NONE and scores[best] < scores[0] + margin:
-        best = 0
-    return best
-
-
-class PacingMotion(_IdentifyingMotion):
+class PacingMotion(PeriodicIdentifyingMotion):
     """Chooses, every period, the reference the identified group model predicts best over a long horizon.
 
     See the module docstring for the candidates and the choice. Decisions are taken in the update phase of
@@ -223,11 +172,18 @@ class PacingMotion(_IdentifyingMotion):
         min_excitation: float = 1.0,
         period: float | None = None,
     ) -> None:
-        super().__init__(n, assisted, period, adjacency, blender)
-        self.decide_every, self._given_ticks = decision_period(self, decide_every)
-        self.decide_ticks = period_ticks(self, self.decide_every, self._given_ticks)  # counted again when compiled
+        super().__init__(
+            n,
+            assisted,
+            period,
+            adjacency,
+            blender,
+            decide_every=decide_every,
+            step=step,
+            min_ticks=min_ticks,
+            min_excitation=min_excitation,
+        )
         self.horizon = finite_number(self, "horizon", horizon, low=0.0, low_open=True)
-        self.step = finite_number(self, "step", step, low=0.0, low_open=True)
         self.max_steps = positive_int(self, "max_steps", max_steps)
         self.frequencies = positive_int(self, "frequencies", frequencies, minimum=2)
         self.gates = finite_array(self, "gates", gates, ndim=1)
@@ -236,28 +192,12 @@ class PacingMotion(_IdentifyingMotion):
         self.margin = finite_number(self, "margin", margin, low=0.0)
         self.switch_margin = finite_number(self, "switch_margin", switch_margin, low=0.0)
         self.start = _MODES[one_of(self, "start", start, tuple(_MODES))]
-        self.min_ticks = positive_int(self, "min_ticks", min_ticks, minimum=1)
-        self.min_excitation = finite_number(self, "min_excitation", min_excitation, low=0.0)
         self.others = np.arange(n) != self.assisted
         self.add_state("mode", self.start)
         self.add_state("value", math.pi)  # the paced frequency, or the mean's gate
         self.add_state("theta_ref_now", 0.0)
-        self.add_state("due", True)
-        self.add_state("previous", np.full(2 * n, math.nan))  # θ̃ and own phases of the last tick (NaN: bad)
         self.decide_ms: list[float] = []
         self.choices: list[int] = []
-
-    @property
-    def decision_period(self) -> float:
-        """Seconds between decisions: ``decide_ticks`` ticks of the block's step."""
-        return self.decide_ticks * block_step(self)
-
-    def setup(self) -> None:
-        super().setup()
-        try:
-            self.decide_ticks = period_ticks(self, self.decide_every, self._given_ticks)
-        except ValueError as exc:
-            raise self._fail(str(exc).removeprefix(f"{type(self).__name__}: ")) from None
 
     def reset(self) -> None:
         super().reset()
@@ -280,14 +220,6 @@ class PacingMotion(_IdentifyingMotion):
         if self.mode == PACE or usable_phases(theta):
             self.theta_ref.value[...] = self._reference(theta)
 
-    def model(self) -> tuple[np.ndarray, float] | None:
-        """The identified ``(ω, K)``, or ``None`` while it is not trusted."""
-        rls = self.identifier()
-        if self.count < self.min_ticks or rls.gain_excitation() < self.min_excitation:
-            return None
-        omega, gain = rls.estimate()
-        return (omega, gain) if np.isfinite(omega).all() and math.isfinite(gain) else None
-
     def update(self, k: int) -> None:
         theta, lam = np.asarray(self.theta.value, dtype=float), float(self.lam.value)
         dt = self.dt * self.every
@@ -306,18 +238,6 @@ class PacingMotion(_IdentifyingMotion):
                 return
         if self.mode == PACE:
             self.theta_ref_now = wrap_angle(self.theta_ref_now + dt * self.value)
-
-    def _identify(self, theta: np.ndarray, lam: float, ref: float, dt: float) -> np.ndarray:
-        """Add this tick's increment to the least squares; returns θ̃ (θ_L2 rebuilt from the reference and λ)."""
-        l0 = theta[self.assisted]
-        seen = theta.copy()
-        seen[self.assisted] = l0 + min(max(float(wrap_pi(ref - l0)), -lam), lam)
-        if usable_phases(self.previous) and self.identifier().observe(
-            self.previous[: self.n], self.previous[self.n :], theta, dt
-        ):
-            self.count += 1
-        self.previous[: self.n], self.previous[self.n :] = seen, theta
-        return seen
 
     def candidates(self, theta_next: np.ndarray, ref: float, omega: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
         """(kinds, values, phases at the next tick) of the candidates: *none*, the *mean*s (one per gate), *pace*s.
@@ -360,11 +280,6 @@ class PacingMotion(_IdentifyingMotion):
             theta_next, lam_next, model, self.adjacency, self.assisted, b, cands, step=step, steps=steps
         )
         return self._best(cands[0], scores), cands, scores
-
-    def _stable_step(self, gain: float) -> float:
-        """The prediction's Euler step: ``step``, shortened where the identified coupling would make it unstable."""
-        stiffness = abs(gain) * float(np.abs(self.adjacency).sum(axis=1).max())
-        return 0.5 / stiffness if stiffness * self.step > 0.5 else self.step
 
     def _best(self, kinds: np.ndarray, scores: np.ndarray) -> int:
         """The candidate chosen with the margins: over *none* (``margin``) and over the current choice."""

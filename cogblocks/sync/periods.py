@@ -26,10 +26,13 @@ def block_step(block: Any) -> float:
     return block.period or BASE_STEP
 
 
-def decision_period(block: Any, value: Any, *, old_name: str = "", old_value: Any = None) -> tuple[float, int | None]:
+def decision_period(
+    block: Any, value: Any, *, old_name: str = "", old_value: Any = None, stacklevel: int = 3
+) -> tuple[float, int | None]:
     """``(seconds, ticks)`` of ``block``'s ``decide_every``; ``ticks`` is ``None`` unless given the old way.
 
-    ``old_value`` is what the deprecated keyword ``old_name`` (ticks) was given (``None``: not given).
+    ``old_value`` is what the deprecated keyword ``old_name`` (ticks) was given (``None``: not given). The warning
+    names the frame ``stacklevel`` up (3: the caller of the constructor that calls this).
     """
     if old_value is not None:
         ticks, given = positive_int(block, old_name, old_value), f"{old_name} (ticks) is deprecated"
@@ -42,7 +45,7 @@ def decision_period(block: Any, value: Any, *, old_name: str = "", old_value: An
         f"{type(block).__name__}: {given}; give decide_every in seconds "
         f"({ticks} ticks of {BASE_STEP:g} s: decide_every={ticks * BASE_STEP:g})",
         DeprecationWarning,
-        stacklevel=3,
+        stacklevel=stacklevel,
     )
     return ticks * block_step(block), ticks
 

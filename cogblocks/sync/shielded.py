@@ -3,20 +3,23 @@
 :class:`ShieldedMotion` runs a motion computer it wraps (any :class:`~cogblocks.sync.motion.MotionComputer`
 block, e.g. the trained DQN's virtual oscillator) unchanged, every tick, and decides every period whether to emit
 its reference or to do nothing (θ_ref = θ_L0, which leaves the assisted participant's phase unaltered: the group
-runs as without L2). The decision is :class:`~cogblocks.sync.pacing.PacingMotion`'s, on a different pair of
-candidates:
+runs as without L2). It decides as the pacing rule (:class:`~cogblocks.sync.pacing.PacingMotion`) does, on a
+different pair of candidates; what the two share is
+:class:`~cogblocks.sync.identified.PeriodicIdentifyingMotion` (the identification, the trust in the model, the
+decision period) and the prediction's step and choice:
 
-* the group is identified online from the observed phases (:meth:`PacingMotion._identify`, recursive least
-  squares on the phase increments, no oracle);
+* the group is identified online from the observed phases
+  (:meth:`PeriodicIdentifyingMotion._identify <cogblocks.sync.identified.PeriodicIdentifyingMotion._identify>`,
+  recursive least squares on the phase increments, no oracle);
 * from the state at a period's first tick, :meth:`ShieldedMotion.advance_rollout` predicts ``horizon`` seconds
-  of the group on that model (:func:`~cogblocks.sync.pacing.euler_step`, the blender's λ in the loop) twice,
+  of the group on that model (:func:`~cogblocks.sync.identified.euler_step`, the blender's λ in the loop) twice,
   side by side: under the wrapped motion computer, a copy of which (its
   :meth:`~cogblocks.sync.motion.MotionComputer.predictor`) is run ahead tick by tick on the predicted phases
   as the block runs it on the observed ones, and under doing nothing; with ``backup`` seconds, both rows then
   go on doing nothing for that long (the backup policy: what the shield falls back to), so that a following
   whose cost shows only after it has stopped is scored with that cost;
 * the wrapped reference is followed in the next period only if its predicted mean r beats doing nothing's by
-  ``margin`` (:func:`~cogblocks.sync.pacing.margin_choice`); otherwise the block does nothing.
+  ``margin`` (:func:`~cogblocks.sync.identified.margin_choice`); otherwise the block does nothing.
 
 Shielding (checking a learned controller's actions against a model and overriding the unsafe ones) is a standard
 way to keep a policy's gains where the model vouches for them and nothing else: doing nothing is what cannot
@@ -35,9 +38,9 @@ import numpy as np
 
 from cogblocks.sim.params import finite_number
 from cogblocks.sync.identification import usable_phases
+from cogblocks.sync.identified import NONE, PACE, PeriodicIdentifyingMotion, euler_step, margin_choice
 from cogblocks.sync.model import BlenderParams
 from cogblocks.sync.motion import MotionComputer
-from cogblocks.sync.pacing import NONE, PACE, PacingMotion, euler_step, margin_choice
 from cogblocks.sync.shield_rollout import PolicyRollout
 
 __all__ = ["BACKUP", "DECIDE_EVERY", "FOLLOW", "HORIZON", "MARGIN", "PolicyRollout", "ShieldedMotion"]
@@ -53,18 +56,20 @@ MARGIN = 0.001
 
 #: Mode of a :class:`ShieldedMotion` that emits its policy's reference (the other mode is ``NONE``).
 FOLLOW = 3
-#: The rollout's two rows: doing nothing, and the wrapped motion computer's reference of every predicted tick.
+#: The rollout's two rows: doing nothing, and the wrapped motion computer's reference of every predicted tick (a
+#: ``PACE`` row at frequency 0 holds its anchor, set to that reference every tick).
 _ROWS = np.array([NONE, PACE])
 #: The backup part's rows: both doing nothing.
 _IDLE = (np.array([NONE, NONE]), np.zeros(2), np.zeros(2))
 
 
-class ShieldedMotion(PacingMotion):
+class ShieldedMotion(PeriodicIdentifyingMotion):
     """A motion computer whose wrapped motion computer's reference is emitted only while a prediction says it does
     not lower r.
 
-    See the module docstring. Before the identified model is trusted (as :class:`PacingMotion`: ``min_ticks``
-    increments and ``min_excitation``) and until the first decision, the block does nothing.
+    See the module docstring. Before the identified model is trusted
+    (:meth:`PeriodicIdentifyingMotion.model <cogblocks.sync.identified.PeriodicIdentifyingMotion.model>`:
+    ``min_ticks`` increments and ``min_excitation``) and until the first decision, the block does nothing.
 
     Parameters
     ----------
@@ -87,15 +92,17 @@ class ShieldedMotion(PacingMotion):
     backup : float
         Seconds predicted after ``horizon``, both rows doing nothing (0: none). The prediction then asks whether
         following for ``horizon`` seconds and stopping leaves the group better off than doing nothing, over
-        ``horizon + backup`` seconds. The backup part steps by :class:`PacingMotion`'s ``step`` (shortened where
-        the identified coupling needs it), and the policy part is then predicted within the first half of the
+        ``horizon + backup`` seconds. The backup part steps by the prediction step of
+        :class:`~cogblocks.sync.identified.PeriodicIdentifyingMotion` (0.05 s, shortened where the identified
+        coupling needs it), and the policy part is then predicted within the first half of the
         period, the backup part within the second.
     margin : float
         Predicted gain in mean r over doing nothing needed to follow.
     switch_margin : float
         Predicted gain needed to change from the current choice (doing nothing or following).
     min_ticks, min_excitation
-        As in :class:`PacingMotion`.
+        As in :class:`~cogblocks.sync.identified.PeriodicIdentifyingMotion`: increments observed, and information
+        on the gain, before the model is trusted.
 
     Notes
     -----
@@ -133,17 +140,18 @@ class ShieldedMotion(PacingMotion):
         super().__init__(
             motion.n,
             motion.assisted,
-            adjacency=adjacency,
-            blender=blender,
+            period,
+            adjacency,
+            blender,
             decide_every=decide_every,
-            horizon=horizon,
-            margin=margin,
-            switch_margin=switch_margin,
-            start="none",
             min_ticks=min_ticks,
             min_excitation=min_excitation,
-            period=period,
         )
+        self.horizon = finite_number(self, "horizon", horizon, low=0.0, low_open=True)
+        self.margin = finite_number(self, "margin", margin, low=0.0)
+        self.switch_margin = finite_number(self, "switch_margin", switch_margin, low=0.0)
+        self.add_state("mode", NONE)
+        self.choices: list[int] = []
         self.backup = finite_number(self, "backup", backup, low=0.0)
         # the wrapped block and its predicting copy are work objects: their state lives in the
         # declared motion_* / ahead_* mirrors, so a restored snapshot rebuilds them
@@ -184,7 +192,7 @@ class ShieldedMotion(PacingMotion):
         self.motion.reset()
         self.ahead.reset()
         self._keep_motion()
-        self.job, self.predictions = None, []
+        self.job, self.predictions, self.choices = None, [], []
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         super().load_state_dict(state)

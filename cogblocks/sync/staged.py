@@ -2,7 +2,7 @@
 
 :func:`~cogblocks.sync.pacing.predicted_order` simulates every candidate over the whole horizon in one call
 (tens of milliseconds, several 10 ms ticks). :class:`StagedPrediction` runs the same Euler steps
-(:func:`~cogblocks.sync.pacing.euler_step`) in two stages, a bounded number of steps per call:
+(:func:`~cogblocks.sync.identified.euler_step`) in two stages, a bounded number of steps per call:
 
 1. the *lead*: one trajectory under the reference being emitted now, for one decision period: it predicts the
    state the group will be in when the decision applies (and, compared with what is then observed, how well
@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from cogblocks.sync.identified import euler_step
 from cogblocks.sync.model import BlenderParams
-from cogblocks.sync.pacing import euler_step
 
 __all__ = ["PROGRESS", "StagedPrediction"]
 
