@@ -186,17 +186,18 @@ def movement_naturalness(altered: Sequence[Any], human: Sequence[Any], dt: float
 
 
 def sync_naturalness(trace: Any, assisted: int | None = None, amplitude: float = 150.0) -> dict[str, float]:
-    """:func:`phase_naturalness` of a run of ``pop_sync`` probed at ``theta_l2`` and ``theta_l0``.
+    """:func:`phase_naturalness` of a run of ``pop_sync`` probed at ``theta_l2`` and ``theta_l0``: the alteration.
 
-    With ``assisted`` and a probe ``theta`` of the group's true phases (the position domain) also
-    :func:`position_naturalness` of the avatar's arm ``amplitude · cos θ_L2`` against the assisted person's
-    ``amplitude · cos θ`` (noise-free: sensor noise is not the person's movement).
+    With ``assisted`` and probes ``theta`` of the group's true phases and ``avatar`` of the phase the avatar
+    shows (the position domain) also :func:`position_naturalness` of the avatar's arm ``amplitude · cos θ_avatar``
+    against the assisted person's ``amplitude · cos θ`` (noise-free: sensor noise is not the person's movement),
+    which shows what the phase estimate adds to the alteration.
     """
     dt = float(trace.t[1] - trace.t[0]) if len(trace.t) > 1 else BASE_STEP
     figures = phase_naturalness(trace["theta_l2"], trace["theta_l0"], dt)
     if assisted is not None:
         person = amplitude * np.cos(np.asarray(trace["theta"])[:, assisted])
-        figures.update(position_naturalness(amplitude * np.cos(trace["theta_l2"]), person, dt))
+        figures.update(position_naturalness(amplitude * np.cos(trace["avatar"]), person, dt))
     return figures
 
 

@@ -19,7 +19,8 @@ from cogblocks.phase import PhaseEstimator
 from cogblocks.sim import BASE_STEP, Block, Diagram, Simulator, Trace
 from cogblocks.sim.params import finite_number, one_of
 from cogblocks.sync import ArmPositions, Blender, KuramotoGroup, OrderParameter
-from cogblocks.sync.blending import BlenderParams, blender_params
+from cogblocks.sync.blending import SLEW, BlenderParams, blender_params
+from cogblocks.sync.handover import SettledHandover
 from cogblocks.sync.l2 import L2Sync
 
 __all__ = [
@@ -55,7 +56,7 @@ def phase_sensing(
 ) -> Diagram:
     """Phases → 1D arm positions → one :class:`PhaseEstimator` per participant → estimated phases.
 
-    A hierarchical block (input ``theta``, output ``theta_hat``) standing for
+    A hierarchical block (input ``theta``, outputs ``theta_hat`` and each estimate's ``settled``) standing for
     what a real set-up measures: the L2 architecture then works on estimated
     phases, as it would on a motion-capture stream. ``front_end`` is the
     estimators' option (``"lowpass"`` or ``"kalman"``, see :class:`PhaseEstimator`).
@@ -64,13 +65,16 @@ def phase_sensing(
     arms = d.add("arms", ArmPositions(n, amplitude, noise_std=noise_std, seed=seed))
     split = d.add("split", Demux(n))
     join = d.add("join", Mux(n))
+    settled = d.add("settled", Mux(n))
     d.connect(arms.p, split.u)
     for i in range(n):
         estimator = d.add(f"estimator{i}", PhaseEstimator(front_end=front_end))
         d.connect(getattr(split, f"y{i}"), estimator.p)
         d.connect(estimator.theta, getattr(join, f"u{i}"))
+        d.connect(estimator.settled, getattr(settled, f"u{i}"))
     d.expose_input("theta", arms.theta)
     d.expose_output("theta_hat", join.y)
+    d.expose_output("settled", settled.y)
     d.expose_output("p", arms.p)
     return d
 
@@ -85,6 +89,7 @@ def pop_sync(
     noise_std: float = 1.0,
     seed: int = 0,
     front_end: str = "lowpass",
+    handover: bool = True,
 ) -> Diagram:
     """A ready closed-loop diagram of the PoP of Social Connectedness.
 
@@ -116,6 +121,10 @@ def pop_sync(
     front_end : {"lowpass", "kalman"}
         What the phase estimators of the ``"position"`` domain put in front of
         Algorithm 1 (see :class:`PhaseEstimator`); unused in the phase domain.
+    handover : bool
+        In the ``"position"`` domain, a :class:`~cogblocks.sync.handover.SettledHandover` block ``avatar``
+        shows the person's own movement until the assisted participant's estimate has settled, then hands
+        over to θ_L2 (an avatar drawn from an unsettled estimate jumps); ``False`` shows θ_L2 from the start.
     """
     if domain not in ("phase", "position"):
         raise ValueError(f"pop_sync: domain must be 'phase' or 'position', got {domain!r}")
@@ -134,13 +143,21 @@ def pop_sync(
         arch = d.add("l2", L2Sync(motion, params.assisted, blender))
         seen = d.add("seen", Substitute(params.assisted))
         d.connect(kuramoto.theta, seen.u)
+        shown = arch.theta_l2
         if domain == "position":
             sensing = d.add("sensing", phase_sensing(params.n, noise_std=noise_std, seed=seed, front_end=front_end))
             d.connect(kuramoto.theta, sensing.theta)
             d.connect(sensing.theta_hat, arch.theta)
+            if handover:
+                slew = getattr(getattr(blender, "params", None), "slew", None) or SLEW  # as fast as an alteration
+                avatar = d.add("avatar", SettledHandover(params.n, params.assisted, slew=slew))
+                d.connect(kuramoto.theta, avatar.theta)
+                d.connect(arch.theta_l2, avatar.theta_l2)
+                d.connect(sensing.settled, avatar.settled)
+                shown = avatar.theta_avatar
         else:
             d.connect(kuramoto.theta, arch.theta)
-        d.connect(arch.theta_l2, kuramoto.theta_l2, seen.v)
+        d.connect(shown, kuramoto.theta_l2, seen.v)
         d.connect(seen.y, order.theta)
     else:
         d.connect(kuramoto.theta, order.theta)
@@ -216,6 +233,8 @@ def sync_table(
     for name in motions:
         probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0", "theta": "group.theta"}
         diagram = pop_sync(params, l2=True, motion=name, blender=blender, domain=domain, seed=seed)
+        if domain == "position":
+            probes["avatar"] = "avatar.theta_avatar" if "avatar" in diagram.blocks else "l2.theta_l2"
         label = f"group {number}, L2 with {name if isinstance(name, str) else type(name).__name__}"
         trace = simulate(diagram, n_steps, probes, label=label, progress=progress)
         r_with = float(trace["r"].mean())

@@ -77,6 +77,8 @@ class Algorithm1Phase(OscillationModel, Block):
     held : output, scalar bool
         True when ``theta`` is extrapolated (or held) rather than measured: on a missing sample, in a
         confirmed drop-out and during the hold-off after one.
+    settled : output, scalar bool
+        True once every half-amplitude and a period are measured (the first one to two periods are not).
 
     Parameters
     ----------
@@ -194,6 +196,7 @@ class Algorithm1Phase(OscillationModel, Block):
         self.add_output("amp_p", shape=(2,), unit=unit)
         self.add_output("amp_v", shape=(2,), unit=f"{unit}/s")
         self.add_output("held", FLAG)
+        self.add_output("settled", FLAG)
         self.add_state("primed", False)
         self.add_state("raw_prev", 0.0)
         self.add_state("repeats", 0)  # how many samples in a row repeated raw_prev exactly
@@ -256,6 +259,7 @@ class Algorithm1Phase(OscillationModel, Block):
             phase = self._extrapolate(self.anchor, since)
             self.theta.value[...] = phase
             self.held.value[...] = True
+            self.settled.value[...] = bool(self.known.all()) and self.omega > 0.0
             self._pending = ("missing", phase, since, min(self._holdoff_ticks, since), self._fill_gap(phase))
             return
         raw, pf, v_in, a_in = sample
@@ -351,6 +355,7 @@ class Algorithm1Phase(OscillationModel, Block):
         self.amp_p.value[...] = amp[:2]
         self.amp_v.value[...] = amp[2:]
         self.held.value[...] = coasting
+        self.settled.value[...] = bool(known.all()) and omega > 0.0
         self._pending = (
             (raw, repeats, step, run_phase, pf, pc, v, n_pushed, total),
             (amp, known, last, t_max, t_min, omega, t_period, lead, phase, anchor, since, coast),

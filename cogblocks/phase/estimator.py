@@ -41,6 +41,8 @@ class PhaseEstimator(Diagram):
         Estimated phase in ``[0, 2π)``; ``p = cos ωt`` gives ``θ ≈ ωt``.
     held : output, scalar bool
         True when ``theta`` is extrapolated (or held) rather than measured.
+    settled : output, scalar bool
+        True once Algorithm 1 has measured every half-amplitude and a period.
     amp_p : output, shape (2,), ``unit``
         Current ``[A_p+, A_p−]``.
     amp_v : output, shape (2,), ``unit``/s
@@ -157,5 +159,6 @@ class PhaseEstimator(Diagram):
             self.connect(lowpass.y, algorithm.p)
         self.expose_output("theta", algorithm.theta)
         self.expose_output("held", algorithm.held)
+        self.expose_output("settled", algorithm.settled)
         self.expose_output("amp_p", algorithm.amp_p)
         self.expose_output("amp_v", algorithm.amp_v)

@@ -13,6 +13,7 @@ from typing import Any
 from cogblocks.sync.blender import Blender
 from cogblocks.sync.blending import BLENDERS, CONTINUOUS, DELIVERABLE, BlenderParams
 from cogblocks.sync.group import KuramotoGroup, KuramotoOscillator, ring_adjacency
+from cogblocks.sync.handover import SettledHandover
 from cogblocks.sync.l2 import L2Sync
 from cogblocks.sync.lookahead import LookaheadPolicy
 from cogblocks.sync.model import SyncModel
@@ -58,6 +59,7 @@ __all__ = [
     "OscillatorMotion",
     "PacingMotion",
     "RecedingPlanMotion",
+    "SettledHandover",
     "ShieldedMotion",
     "SyncModel",
     "check_blender",

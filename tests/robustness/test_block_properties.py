@@ -76,6 +76,7 @@ from cogblocks.sync import (
     MotionComputer,
     OrderParameter,
     OscillatorMotion,
+    SettledHandover,
 )
 
 TWO_PI = 2.0 * math.pi
@@ -729,6 +730,38 @@ register(
     motion_role(),
     lambda b: {"theta": phase((b.n,)), "lam": floats((), "rad", scale=1.0, offset=1.0)},
     ["theta", "lam"],
+)
+
+
+def flags(n: int) -> Feed:
+    return Feed(
+        Signal(shape=(n,), dtype=bool),
+        lambda ticks, _: st.lists(st.lists(st.booleans(), min_size=n, max_size=n), min_size=ticks, max_size=ticks).map(
+            lambda rows: np.array(rows, dtype=bool)
+        ),
+        False,
+    )
+
+
+def check_handover(block, k, ins, outs, previous, seen):
+    """Until the assisted participant's estimate has settled (on a tick it could act on), the avatar is the person."""
+    usable = [past for past in seen if not bad(past["theta"][block.assisted]) and not bad(past["theta_l2"])]
+    if usable and usable[-1] is ins and not any(past["settled"][block.assisted] for past in usable):
+        assert outs["theta_avatar"] == ins["theta"][block.assisted] % TWO_PI
+
+
+def held_input(block, ins, seen):
+    return bad(ins["theta_l2"]) or bad(ins["theta"][block.assisted])
+
+
+register(
+    SettledHandover,
+    st.integers(1, 5).flatmap(
+        lambda n: st.builds(SettledHandover, st.just(n), st.integers(0, n - 1), slew=st.floats(0.5, 20.0))
+    ),
+    lambda b: {"theta": phase((b.n,)), "theta_l2": phase(()), "settled": flags(b.n)},
+    ["theta", "theta_l2"],
+    Policy(holds={"theta_avatar": held_input}, check=check_handover),
 )
 
 

@@ -130,6 +130,7 @@ BASES: dict[str, Callable[[], dict[str, Any]]] = {
     "LibraryProjector": lambda: {"library": _tiny_library()},
     "VelocityBlender": lambda: {"table": _tiny_table()},
     "L2Sync": lambda: {"motion": _mean_motion(), "assisted": 1},
+    "SettledHandover": lambda: {"n": 3, "assisted": 1},
     "L2Amplification": lambda: {"library": _tiny_library(), "table": _tiny_table()},
     "OptimalBlender": lambda: {"library": _tiny_library(), "network": _tiny_network()},
 }
@@ -462,6 +463,10 @@ CASES = [
     case("GatedMotion", "threshold", math.nan, "[0.0, inf)"),
     case("L2Sync", "motion", 5, "inputs ['theta', 'lam'] and outputs ['theta_ref']", given="int"),
     case("L2Sync", "assisted", -1, "integer >= 0"),
+    case("SettledHandover", "n", 0, "integer >= 1"),
+    case("SettledHandover", "assisted", 3, "[0, 2]"),
+    case("SettledHandover", "assisted", True, "[0, 2]"),
+    case("SettledHandover", "slew", 0.0, "(0.0, inf)"),
     case("L2Sync", "assisted", 0, "assisted index 1"),
     case("L2Sync", "blender", 5, "outputs ['theta_l2', 'lam']", given="int"),
     case("L2Amplification", "library", 5, "ReachLibrary", given="int"),
