@@ -42,6 +42,8 @@ def _run_sync(args: argparse.Namespace) -> int:
     from cogblocks.experiments.heldout_cli import run_sync_heldout
     from cogblocks.experiments.sync import sync_trace
 
+    if not args.handover and args.domain != "position":
+        raise ValueError("--no-handover applies to --domain position only (the phase domain has no estimate to settle)")
     if args.random is not None:  # every policy unless some are named
         return run_sync_heldout(args, list(MOTIONS) if args.policy is None else args.policy)
     if args.split != "test" or args.no_bound or args.thorough_bound or args.max_duration is not None or args.noise:
@@ -53,7 +55,7 @@ def _run_sync(args: argparse.Namespace) -> int:
         raise ValueError("--save-trace writes one run's trace: give exactly one --policy")
     if args.save_trace and (args.duration is not None or args.seed != 0):
         raise ValueError("--save-trace records the group's own run: drop --duration and --seed")
-    options = {"duration": args.duration, "seed": args.seed, "blender": args.blender}
+    options = {"duration": args.duration, "seed": args.seed, "blender": args.blender, "handover": args.handover}
     result: dict[str, Any] = {}
     try:
         for row in sync_table(group, motions, args.domain, **options):
@@ -77,7 +79,9 @@ def _run_sync(args: argparse.Namespace) -> int:
         print(json.dumps(result), flush=True)
     if args.save_trace:
         write_output(
-            args.save_trace, sync_trace(group, motions[0], args.domain, blender=args.blender).save, "the trace"
+            args.save_trace,
+            sync_trace(group, motions[0], args.domain, blender=args.blender, handover=args.handover).save,
+            "the trace",
         )
     for motion, path in _figure_paths(args.plot, motions).items():  # one figure per policy that ran
         plot_output(path, lambda path, motion=motion: plot_sync(group, motion, path, domain=args.domain, **options))
@@ -211,6 +215,13 @@ def _build_parser() -> argparse.ArgumentParser:
         choices=("phase", "position"),
         default="phase",
         help="'position': the L2 works on phases estimated from simulated arm positions (default 'phase')",
+    )
+    sync.add_argument(
+        "--no-handover",
+        dest="handover",
+        action="store_false",
+        help="with --domain position: draw the avatar from θ_L2 from the first tick, not the person's own movement "
+        "until the phase estimate has settled",
     )
     sync.add_argument(
         "--duration", type=DURATION, metavar="SECONDS", help="simulated seconds (default: the group's, Table 2)"

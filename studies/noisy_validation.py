@@ -1,7 +1,7 @@
 """Validation runs of the noisy groups (never the test split): one JSON file per call, rows per group.
 
 python studies/noisy_validation.py OUT.json --policies replan mean dqn guard [--bound [--thorough]] [--noise-free]
-    [--domain position] [--groups 16] [--max-duration 60] [--blender continuous]
+    [--domain position [--no-handover]] [--groups 16] [--max-duration 60] [--blender continuous]
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ parser.add_argument("--domain", default="phase")
 parser.add_argument("--groups", type=int, default=16)
 parser.add_argument("--max-duration", type=float, default=60.0)
 parser.add_argument("--blender", default="continuous")
+parser.add_argument("--no-handover", dest="handover", action="store_false", help="position domain: avatar from θ_L2")
 args = parser.parse_args()
 start = time.process_time()
 table = heldout_table(
@@ -35,6 +36,7 @@ table = heldout_table(
     thorough=args.thorough,
     noise=not args.noise_free,
     domain=args.domain,
+    handover=args.handover,
     blender=args.blender,
 )
 table["cpu_s"] = time.process_time() - start

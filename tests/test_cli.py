@@ -153,6 +153,19 @@ def test_run_sync_duration_seed_and_plot(capsys, tmp_path):
     assert position["7"]["r_without"] == position["0"]["r_without"] == result["r_without"]  # no sensing without L2
 
 
+def test_no_handover_runs_the_position_domain_as_pop_sync_handover_false(capsys):
+    common = ["run", "sync", "--group", "1", "--policy", "mean", "--duration", "5", "--domain", "position", "--json"]
+    rows = {}
+    for extra in ([], ["--no-handover"]):
+        assert main([*common, *extra]) == 0
+        rows[bool(extra)] = json.loads(capsys.readouterr().out)["results"][0]
+    expected = run_sync(1, ["mean"], "position", duration=5.0, progress=False, handover=False)["results"][0]
+    assert rows[True] == expected
+    assert rows[False]["r_with"] != expected["r_with"]  # the avatar showed the person for the first seconds
+    assert main(["run", "sync", "--group", "1", "--policy", "mean", "--no-handover"]) == 2
+    assert "--no-handover applies to --domain position only" in capsys.readouterr().err
+
+
 def test_run_sync_prints_each_line_as_soon_as_it_is_known():
     """Text output to a pipe is not held back until the end: kill the run after its first line."""
     command = [sys.executable, "-m", "cogblocks.cli", "run", "sync", "--group", "1", "--policy", "lookahead"]

@@ -213,6 +213,7 @@ def sync_table(
     seed: int = 0,
     progress: bool | None = None,
     blender: str | BlenderParams | None = DEFAULT_BLENDER,
+    handover: bool = True,
 ) -> Iterator[dict[str, Any]]:
     """Table 3 for one group, one figure as soon as it is computed (see :func:`run_sync`).
 
@@ -221,8 +222,8 @@ def sync_table(
     per motion computer (the position domain adds ``position_peak_speed_ratio`` and
     ``position_rms_jerk_ratio``; see :mod:`cogblocks.diagrams.naturalness`; a motion computer with a ``world``,
     :class:`~cogblocks.sync.GatedMotion`, adds ``"world"``, what it believed at the end of the run). Progress
-    bars are named after the group and the run (``progress`` as in :func:`simulate`); ``blender`` as in
-    :func:`pop_sync`.
+    bars are named after the group and the run (``progress`` as in :func:`simulate`); ``blender`` and
+    ``handover`` as in :func:`pop_sync`.
     """
     params, motions = _checked(group, motions, duration)
     number = group if isinstance(group, int) else params.name
@@ -232,7 +233,7 @@ def sync_table(
     yield {"group": number, "domain": domain, "r_without": r_without}
     for name in motions:
         probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0", "theta": "group.theta"}
-        diagram = pop_sync(params, l2=True, motion=name, blender=blender, domain=domain, seed=seed)
+        diagram = pop_sync(params, l2=True, motion=name, blender=blender, domain=domain, seed=seed, handover=handover)
         if domain == "position":
             probes["avatar"] = "avatar.theta_avatar" if "avatar" in diagram.blocks else "l2.theta_l2"
         label = f"group {number}, L2 with {name if isinstance(name, str) else type(name).__name__}"
@@ -262,13 +263,14 @@ def run_sync(
     seed: int = 0,
     progress: bool | None = None,
     blender: str | BlenderParams | None = DEFAULT_BLENDER,
+    handover: bool = True,
 ) -> dict[str, Any]:
     """Table 3 for one group: the time-averaged order parameter without and with L2.
 
     The average is over every sample ``t = 0 … T`` (T/dt + 1 ticks, r(0) = 1), as
     in the deliverable. ``domain="position"`` runs the L2 architecture on
     phases estimated from arm positions (see :func:`pop_sync`), with sensor noise
-    seeded by ``seed``. ``duration`` (seconds) replaces the group's T; ``blender`` is
+    seeded by ``seed``. ``duration`` (seconds) replaces the group's T; ``blender`` and ``handover`` are
     :func:`pop_sync`'s (``"deliverable"`` for the deliverable's exact blender). Every motion
     computer name is checked before the first run.
 
@@ -279,7 +281,8 @@ def run_sync(
         "mean_dev_rad", "max_dev_rad", ...naturalness}, ...]}``; the deviations are
         ``|wrap(θ_L2 − θ_L0)|`` over the run, the naturalness keys as in :func:`sync_table`.
     """
-    head, *rows = sync_table(group, motions, domain, duration=duration, seed=seed, progress=progress, blender=blender)
+    options = {"duration": duration, "seed": seed, "progress": progress, "blender": blender, "handover": handover}
+    head, *rows = sync_table(group, motions, domain, **options)
     return {**head, "results": rows}
 
 
@@ -293,13 +296,15 @@ def plot_sync(
     domain: str = "phase",
     seed: int = 0,
     blender: str | BlenderParams | None = DEFAULT_BLENDER,
+    handover: bool = True,
 ) -> None:
     """Draw the analogues of Figures 9 and 10 and save them to ``path``.
 
     Top: r with and without L2 over the whole run. Middle: the phase differences
     wrap(θ_ref − θ_L0) and wrap(θ_L2 − θ_L0) over the whole run (bounded, unlike the phases
     themselves). Bottom: θ_L0, θ_ref and θ_L2 over the last ``window`` seconds (at most a quarter
-    of the run; shaded above), where the wrapped phases can be told apart.
+    of the run; shaded above), where the wrapped phases can be told apart. ``domain``, ``seed``, ``blender`` and
+    ``handover`` are :func:`pop_sync`'s.
     """
     import matplotlib
 
@@ -311,7 +316,7 @@ def plot_sync(
     n_steps = round(params.duration / BASE_STEP) + 1
     without = simulate(pop_sync(params, l2=False), n_steps, label="plot, without L2")
     probes = {"theta_l2": "l2.theta_l2", "theta_l0": "l2.theta_l0", "theta_ref": "l2.theta_ref"}
-    diagram = pop_sync(params, l2=True, motion=motion, blender=blender, domain=domain, seed=seed)
+    diagram = pop_sync(params, l2=True, motion=motion, blender=blender, domain=domain, seed=seed, handover=handover)
     with_l2 = simulate(diagram, n_steps, probes, label=f"plot, L2 with {label}")
     t = with_l2.t
     zoom = t >= t[-1] - min(window, t[-1] / 4)  # a short run is zoomed too

@@ -35,6 +35,7 @@ def evaluate_group(
     domain: str = "phase",
     blender: str = DEFAULT_BLENDER,
     done: dict[str, Any] | None = None,
+    handover: bool = True,
 ) -> dict[str, Any]:
     """One group: r without L2, the bound, and per policy r with L2, the change and the deviations.
 
@@ -50,10 +51,10 @@ def evaluate_group(
         ``thorough`` computes the thorough bound (``upper_bound(thorough=True)``, about 3× the CPU). A noisy
         group's row also holds ``"noise"`` (:meth:`~cogblocks.data.groups.GroupNoise.as_dict`), and its bound is
         the clairvoyant one (the noise draw known). ``domain="position"`` runs the policies on phases estimated
-        from arm positions (the bound stays the phase domain's).
+        from arm positions (the bound stays the phase domain's), with :func:`pop_sync`'s ``handover``.
     """
     ready = {row["policy"]: row for row in (done or {}).get("results", [])}
-    result = run_sync(group, [p for p in policies if p not in ready], domain, blender=blender)
+    result = run_sync(group, [p for p in policies if p not in ready], domain, blender=blender, handover=handover)
     if done is not None:
         computed = {row["policy"]: row for row in result["results"]}
         result = {"r_without": done["r_without"], "results": [ready.get(p) or computed[p] for p in policies]}
@@ -133,6 +134,7 @@ def heldout_table(
     thorough: bool = False,
     noise: bool = False,
     domain: str = "phase",
+    handover: bool = True,
     blender: str = DEFAULT_BLENDER,
     batch: bool = False,
     progress: Callable[[int, dict[str, Any]], None] | None = None,
@@ -168,6 +170,8 @@ def heldout_table(
         without L2); the bound is then the clairvoyant one.
     domain : {"phase", "position"}
         Where the policies read the phases (see :func:`~cogblocks.diagrams.sync.pop_sync`).
+    handover : bool
+        In the position domain, :func:`~cogblocks.diagrams.sync.pop_sync`'s ``handover``.
     blender : {"continuous", "deliverable"}
         The blender of every closed loop (:func:`~cogblocks.diagrams.sync.pop_sync`'s); the bound is the deliverable's.
     batch : bool
@@ -205,13 +209,15 @@ def heldout_table(
         ready = sync_rows(groups, [p for p in policies if p in BATCHED_MOTIONS], blender)
     if workers == 1:
         done: Iterable[tuple[int, dict[str, Any]]] = (
-            (i, evaluate_group(g, policies, bound, thorough, domain, blender, ready[i])) for i, g in enumerate(groups)
+            (i, evaluate_group(g, policies, bound, thorough, domain, blender, ready[i], handover))
+            for i, g in enumerate(groups)
         )
     else:
         from joblib import Parallel, delayed
 
         done = Parallel(n_jobs=workers, backend="loky", return_as="generator_unordered")(
-            delayed(_indexed)(i, g, policies, bound, thorough, domain, blender, ready[i]) for i, g in enumerate(groups)
+            delayed(_indexed)(i, g, policies, bound, thorough, domain, blender, ready[i], handover)
+            for i, g in enumerate(groups)
         )
     by_index: dict[int, dict[str, Any]] = {}
     for index, row in done:

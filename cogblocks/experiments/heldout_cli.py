@@ -49,6 +49,7 @@ def run_sync_heldout(args: argparse.Namespace, motions: list[str]) -> int:
             bound=not args.no_bound,
             noise=args.noise,
             domain=args.domain,
+            handover=args.handover,
             progress=progress,
             batch=args.batch,
             **options,

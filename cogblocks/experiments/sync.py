@@ -45,12 +45,14 @@ def random_group_set(n: int, split: str = "test", seed: int = 0) -> dict[str, Sy
     return {f"{split}{i}": g for i, g in enumerate(make(n, split=split, seed=seed))}
 
 
-def _closed_loop(group: SyncGroup, policy: str, seed: int, domain: str, blender: str = DEFAULT_BLENDER) -> Simulator:
+def _closed_loop(
+    group: SyncGroup, policy: str, seed: int, domain: str, blender: str = DEFAULT_BLENDER, handover: bool = True
+) -> Simulator:
     if policy == NO_L2:
         return Simulator(pop_sync(group, l2=False), progress=False)
     if policy not in MOTIONS:
         raise ValueError(f"policy must be {NO_L2!r} or one of {sorted(MOTIONS)}, got {policy!r}")
-    diagram = pop_sync(group, l2=True, motion=policy, blender=blender, domain=domain, seed=seed)
+    diagram = pop_sync(group, l2=True, motion=policy, blender=blender, domain=domain, seed=seed, handover=handover)
     return Simulator(diagram, probes=_L2_PROBES, progress=False)
 
 
@@ -62,14 +64,15 @@ def sync_run(
     groups: Mapping[str, SyncGroup],
     domain: str = "phase",
     blender: str = DEFAULT_BLENDER,
+    handover: bool = True,
 ) -> Callable[[], Trace]:
     """The run function of one task: the closed loop of ``groups[group]`` with ``policy`` behind ``blender``.
 
-    ``seed`` seeds the arm-position noise of the ``"position"`` domain; the phase domain is
-    deterministic.
+    ``seed`` seeds the arm-position noise of the ``"position"`` domain (``handover`` as in ``pop_sync``); the
+    phase domain is deterministic.
     """
     params = groups[group]
-    sim = _closed_loop(params, policy, seed, domain, blender)
+    sim = _closed_loop(params, policy, seed, domain, blender, handover)
     return functools.partial(sim.run, n_steps=round(params.duration / sim.dt) + 1)
 
 
@@ -156,6 +159,7 @@ def save_sync_trace(group: int, policy: str, domain: str, path: str, *, blender:
     sync_trace(group, policy, domain, blender=blender).save(path)
 
 
-def sync_trace(group: int, policy: str, domain: str, *, blender: str = DEFAULT_BLENDER) -> Trace:
+def sync_trace(group: int, policy: str, domain: str, *, blender: str = DEFAULT_BLENDER, handover: bool = True) -> Trace:
     """The trace of one closed loop of Table 2's ``group`` with ``policy``."""
-    return sync_run(str(group), policy, 0, groups=table2_groups([group]), domain=domain, blender=blender)()
+    groups = table2_groups([group])
+    return sync_run(str(group), policy, 0, groups=groups, domain=domain, blender=blender, handover=handover)()
