@@ -6,7 +6,7 @@ from studies.planner_profile import main, profile
 def test_the_profile_sees_every_decision_inside_the_planners_update():
     decide_ms, stats = profile(duration=20.0, seconds=1.5)
     assert len(decide_ms) == 2 and min(decide_ms) > 0.0  # the first decision, then one a second later
-    updates = [value for (path, _, name), value in stats.stats.items() if path.endswith("receding.py") and name == "update"]
+    updates = [v for (path, _, name), v in stats.stats.items() if path.endswith("receding.py") and name == "update"]
     assert len(updates) == 1 and updates[0][0] == 151  # called once a tick
 
 
