@@ -21,7 +21,8 @@ import argparse
 import dataclasses
 import importlib
 import json
-from collections.abc import Sequence
+import sys
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -109,10 +110,13 @@ def compare_blenders(
     *,
     workers: int = 1,
     max_duration: float | None = None,
+    progress: Callable[[int, dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
     """:func:`evaluate_group` on every group (joblib with ``workers`` > 1), then :func:`summarise`.
 
     Returns ``{"summary": [...], "groups": [...]}``; ``max_duration`` cuts every group (a quick check only).
+    ``progress(index, row)`` is called as each group is done (with workers, in the order they finish), so that an
+    interrupted caller keeps every group finished so far.
     """
     unknown = [name for name in policies if name not in MOTIONS]
     if unknown:
@@ -122,12 +126,31 @@ def compare_blenders(
     if max_duration is not None:
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
     if workers == 1:
-        rows = [evaluate_group(g, policies, blenders) for g in groups]
+        done: Iterable[tuple[int, dict[str, Any]]] = (
+            (i, evaluate_group(g, policies, blenders)) for i, g in enumerate(groups)
+        )
     else:
         from joblib import Parallel, delayed
 
-        rows = Parallel(n_jobs=workers, backend="loky")(delayed(evaluate_group)(g, policies, blenders) for g in groups)
+        done = Parallel(n_jobs=workers, backend="loky", return_as="generator_unordered")(
+            delayed(_indexed)(i, g, policies, blenders) for i, g in enumerate(groups)
+        )
+    by_index: dict[int, dict[str, Any]] = {}
+    for index, row in done:
+        by_index[index] = row
+        if progress is not None:
+            progress(index, row)
+    rows = [by_index[i] for i in range(len(groups))]
     return {"summary": summarise(rows), "groups": rows}
+
+
+def _indexed(index: int, group: SyncGroup, *args: Any) -> tuple[int, dict[str, Any]]:
+    return index, evaluate_group(group, *args)
+
+
+def _group_line(done: int, total: int, row: dict[str, Any]) -> str:
+    changes = ", ".join(f"{r['blender']} {r['policy']} {r['change_pct']:+.2f} %" for r in row["results"])
+    return f"group {done}/{total} done: {row['name']}: r without L2 {row['r_without']:.4f}; {changes}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -151,11 +174,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not groups:
         parser.error("give --random N and/or --table2")
     policies = args.policy or list(MOTIONS)
-    result = compare_blenders(groups, policies, args.blender or ["deliverable"], workers=args.workers,
-                              max_duration=args.max_duration)  # fmt: skip
+    finished: dict[int, dict[str, Any]] = {}
+
+    def progress(index: int, row: dict[str, Any]) -> None:
+        finished[index] = row
+        print(_group_line(len(finished), len(groups), row), file=sys.stderr, flush=True)
+
+    try:
+        result = compare_blenders(groups, policies, args.blender or ["deliverable"], workers=args.workers,
+                                  max_duration=args.max_duration, progress=progress)  # fmt: skip
+    except KeyboardInterrupt:
+        print("interrupted by Ctrl-C", file=sys.stderr, flush=True)
+        if not finished:
+            return 130
+        rows = [finished[i] for i in sorted(finished)]  # the groups done are summarised, none of them lost
+        result = {"summary": summarise(rows), "groups": rows, "interrupted": True, "n_requested": len(groups)}
+        code = 130
+    else:
+        code = 0
     if args.json:
-        print(json.dumps(result))
-        return 0
+        print(json.dumps(result), flush=True)
+        return code
+    if code:
+        print(f"interrupted: the {len(result['groups'])} groups done of these", flush=True)
     print(f"{len(groups)} groups ({args.random} of the {args.split} split, seed {args.seed}"
           f"{', and Table 2' if args.table2 else ''}); pop_sync's default policy: {DEFAULT_MOTION}")  # fmt: skip
     print(
@@ -167,7 +208,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               f" {s['worst_change_pct']:+7.2f}  {kept:>9}  {s['max_step_rad']:8.3f}  "
               f"{100 * s['jump_free_share']:7.0f} %  {s['mean_jumps_per_min']:9.1f}  "
               f"{s['max_peak_speed_ratio']:5.1f}")  # fmt: skip
-    return 0
+    return code
 
 
 if __name__ == "__main__":

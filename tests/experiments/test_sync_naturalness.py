@@ -51,3 +51,31 @@ def test_command_line(capsys):
     out = json.loads(capsys.readouterr().out)
     (row,) = out["summary"]
     assert row["groups"] == 1 and row["policy"] == "mean" and np.isfinite(row["max_step_rad"])
+
+
+def test_ctrl_c_keeps_the_groups_done(capsys, monkeypatch):
+    """Ctrl-C after the second group (injected into the real run) prints both groups' summary and their lines."""
+    import cogblocks.experiments.sync_naturalness as module
+
+    real, calls = module.evaluate_group, []
+
+    def interrupted_on_the_third_group(*args):
+        calls.append(args[0].name)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args)
+
+    monkeypatch.setattr(module, "evaluate_group", interrupted_on_the_third_group)
+    argv = ["--random", "4", "--split", "validation", "--max-duration", "2", "--policy", "mean", "--json"]
+    assert main(argv) == 130
+    out, err = capsys.readouterr()
+    result = json.loads(out)
+    assert result["interrupted"] is True and result["n_requested"] == 4
+    assert [g["name"] for g in result["groups"]] == calls[:2]
+    (row,) = result["summary"]
+    assert row["groups"] == 2
+    changes = [g["results"][0]["change_pct"] for g in result["groups"]]
+    assert row["mean_change_pct"] == pytest.approx(np.mean(changes), rel=1e-12)
+    lines = [line for line in err.splitlines() if line.startswith("group ")]
+    assert [line.split(":")[0] for line in lines] == ["group 1/4 done", "group 2/4 done"]
+    assert err.rstrip().endswith("interrupted by Ctrl-C")
