@@ -207,24 +207,8 @@ def heldout_table(
         from cogblocks.diagrams.sync_batch import BATCHED_MOTIONS, sync_rows
 
         ready = sync_rows(groups, [p for p in policies if p in BATCHED_MOTIONS], blender)
-    if workers == 1:
-        done: Iterable[tuple[int, dict[str, Any]]] = (
-            (i, evaluate_group(g, policies, bound, thorough, domain, blender, ready[i], handover))
-            for i, g in enumerate(groups)
-        )
-    else:
-        from joblib import Parallel, delayed
-
-        done = Parallel(n_jobs=workers, backend="loky", return_as="generator_unordered")(
-            delayed(_indexed)(i, g, policies, bound, thorough, domain, blender, ready[i], handover)
-            for i, g in enumerate(groups)
-        )
-    by_index: dict[int, dict[str, Any]] = {}
-    for index, row in done:
-        by_index[index] = row
-        if progress is not None:
-            progress(index, row)
-    rows = [by_index[i] for i in range(len(groups))]
+    calls = [(g, policies, bound, thorough, domain, blender, ready[i], handover) for i, g in enumerate(groups)]
+    rows = each_group(evaluate_group, calls, workers, progress)
     table: dict[str, Any] = {"n_groups": len(groups), "seed": seed, "policies": summarise(rows, policies)}
     if any(group.noise is not None for group in groups):
         table["domain"] = domain
@@ -234,9 +218,36 @@ def heldout_table(
     return table
 
 
-def _indexed(index: int, group: SyncGroup, *args: Any) -> tuple[int, dict[str, Any]]:
-    """:func:`evaluate_group` with the group's index, for results that arrive in the order they finish."""
-    return index, evaluate_group(group, *args)
+def each_group(
+    evaluate: Callable[..., dict[str, Any]],
+    calls: list[tuple],
+    workers: int = 1,
+    progress: Callable[[int, dict[str, Any]], None] | None = None,
+) -> list[dict[str, Any]]:
+    """``evaluate(*call)`` for every call (a group's arguments), in order; joblib's loky with ``workers`` > 1.
+
+    ``progress(index, row)`` is called as each row arrives (with workers, in the order they finish), so that an
+    interrupted caller keeps every group finished so far.
+    """
+    if workers == 1:
+        done: Iterable[tuple[int, dict[str, Any]]] = ((i, evaluate(*call)) for i, call in enumerate(calls))
+    else:
+        from joblib import Parallel, delayed
+
+        done = Parallel(n_jobs=workers, backend="loky", return_as="generator_unordered")(
+            delayed(_indexed)(evaluate, i, call) for i, call in enumerate(calls)
+        )
+    by_index: dict[int, dict[str, Any]] = {}
+    for index, row in done:
+        by_index[index] = row
+        if progress is not None:
+            progress(index, row)
+    return [by_index[i] for i in range(len(calls))]
+
+
+def _indexed(evaluate: Callable[..., dict[str, Any]], index: int, call: tuple) -> tuple[int, dict[str, Any]]:
+    """``evaluate(*call)`` with its index, for results that arrive in the order they finish."""
+    return index, evaluate(*call)
 
 
 def plot_heldout(table: dict[str, Any], path: str) -> None:

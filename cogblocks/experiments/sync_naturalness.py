@@ -22,7 +22,7 @@ import dataclasses
 import importlib
 import json
 import sys
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -30,6 +30,7 @@ import numpy as np
 from cogblocks.data.groups import TABLE2, SyncGroup, random_groups
 from cogblocks.diagrams.naturalness import sync_naturalness
 from cogblocks.diagrams.sync import DEFAULT_MOTION, MOTIONS, pop_sync, simulate
+from cogblocks.evaluation.sync_heldout import each_group
 from cogblocks.sim.timing import BASE_STEP
 
 __all__ = ["blender_from_spec", "compare_blenders", "evaluate_group", "main", "summarise"]
@@ -125,27 +126,8 @@ def compare_blenders(
         blender_from_spec(spec)  # every spec checked before the first run
     if max_duration is not None:
         groups = [dataclasses.replace(g, duration=min(g.duration, max_duration)) for g in groups]
-    if workers == 1:
-        done: Iterable[tuple[int, dict[str, Any]]] = (
-            (i, evaluate_group(g, policies, blenders)) for i, g in enumerate(groups)
-        )
-    else:
-        from joblib import Parallel, delayed
-
-        done = Parallel(n_jobs=workers, backend="loky", return_as="generator_unordered")(
-            delayed(_indexed)(i, g, policies, blenders) for i, g in enumerate(groups)
-        )
-    by_index: dict[int, dict[str, Any]] = {}
-    for index, row in done:
-        by_index[index] = row
-        if progress is not None:
-            progress(index, row)
-    rows = [by_index[i] for i in range(len(groups))]
+    rows = each_group(evaluate_group, [(g, policies, blenders) for g in groups], workers, progress)
     return {"summary": summarise(rows), "groups": rows}
-
-
-def _indexed(index: int, group: SyncGroup, *args: Any) -> tuple[int, dict[str, Any]]:
-    return index, evaluate_group(group, *args)
 
 
 def _group_line(done: int, total: int, row: dict[str, Any]) -> str:
